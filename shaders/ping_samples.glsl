@@ -1,0 +1,130 @@
+#version 430 core
+// Pass 1: rasterise the scene for one straight track segment and one side into
+// (ping row x look-angle column) samples. Each fragment is one ray of the fan:
+// it writes the exact slant range of its hit and the weight Phi * R * f(cos t)/cos t * r * dalpha * dy.
+// Defines: BEAM_TABLE (0/1 unused here, the column table carries Phi*dalpha), SCATTERING (1 = Lambert).
+
+#ifndef SCATTERING
+#error "SCATTERING must be defined"
+#endif
+
+#if defined VERTEX_SHADER
+in vec3 in_pos;                 // local coordinates (metres, scene local origin subtracted)
+uniform vec3 seg_origin;        // segment origin, local coordinates
+uniform vec3 axis_along;
+uniform vec3 axis_side;         // starboard or port unit vector
+uniform vec3 axis_up;
+out vec3 v_q;                   // (along, side, up) coordinates relative to the segment origin
+void main() {
+    vec3 d = in_pos - seg_origin;
+    v_q = vec3(dot(d, axis_along), dot(d, axis_side), dot(d, axis_up));
+}
+#endif
+
+#if defined GEOMETRY_SHADER
+layout(triangles) in;
+layout(triangle_strip, max_vertices = 3) out;
+in vec3 v_q[];
+uniform float warp_h;           // nominal altitude of the range warp, metres
+uniform float warp_c;           // near-nadir floor of the warp slope (fraction of warp_h)
+uniform float alpha0;           // asin(warp_h / max_range): where the linear extension starts
+uniform float rho0;             // warp value at alpha0
+uniform float slope0;           // -d(warp)/d(alpha) at alpha0
+uniform float rho_lo;           // warp value at the first column edge (alpha_max)
+uniform float rho_hi;           // warp value at the last column edge (alpha_min)
+uniform float row_scale;        // 2 / (spacing * pings)  (clip units per metre along track)
+uniform float row_offset;       // clip y of along-track coordinate 0
+uniform float far_range;        // slant range mapped to depth 1
+uniform float alpha_span_max;   // triangles spanning more angle than this are culled (wrap)
+uniform float frame_sign;       // det of the (along, side, up) frame: fixes the normal's sign
+layout(std430, binding = 0) readonly buffer FaceData { float face_refl[]; };
+flat out vec4 g_plane;          // unit normal (xyz, segment frame) and offset n.q
+flat out float g_refl;
+out vec3 g_q;
+
+float warp(float a) {
+    // Pseudo slant range: h / sin(a) + c h (pi/2 - a) above alpha0, linear below it.
+    if (a >= alpha0) return warp_h / sin(a) + warp_c * warp_h * (1.5707963267948966 - a);
+    return rho0 + (alpha0 - a) * slope0;
+}
+
+void main() {
+    vec3 n = frame_sign * cross(v_q[1] - v_q[0], v_q[2] - v_q[0]);
+    float len = length(n);
+    if (len <= 0.0) return;
+    n /= len;
+    float a[3];
+    float amin = 10.0, amax = -10.0;
+    for (int i = 0; i < 3; ++i) {
+        // Depression angle in (-pi/2, 3pi/2]: the wrap is straight up, outside any beam.
+        float ai = atan(-v_q[i].z, v_q[i].y);
+        if (ai < -1.5707963267948966) ai += 6.283185307179586;
+        a[i] = ai;
+        amin = min(amin, ai);
+        amax = max(amax, ai);
+    }
+    if (amax - amin > alpha_span_max) return;
+    for (int i = 0; i < 3; ++i) {
+        float x = 2.0 * (warp(a[i]) - rho_lo) / (rho_hi - rho_lo) - 1.0;
+        float y = v_q[i].x * row_scale + row_offset;
+        float z = 2.0 * length(v_q[i].yz) / far_range - 1.0;
+        gl_Position = vec4(x, y, z, 1.0);
+        g_plane = vec4(n, dot(n, v_q[0]));
+        g_refl = face_refl[gl_PrimitiveIDIn];
+        g_q = v_q[i];
+        EmitVertex();
+    }
+    EndPrimitive();
+}
+#endif
+
+#if defined FRAGMENT_SHADER
+flat in vec4 g_plane;
+flat in float g_refl;
+in vec3 g_q;
+uniform sampler2D columns;      // per column: (alpha, Phi(alpha - axis) * dalpha, dalpha / 2)
+uniform float spacing;          // metres between pings (0 for a stationary sonar)
+uniform float rows_per_ping;
+uniform float row_width;        // along-track width of one row, metres
+uniform float far_range;
+// (slant range where the column's near and far edge rays meet the plane, weight): the sample
+// covers that range interval, so pass 2 can spread it over the bins it overlaps.
+layout(location = 0) out vec4 out_sample;
+
+float scattering_over_cos(float cos_t) {
+#if SCATTERING == 1
+    return 1.0;                 // Lambert: cos(theta) * area / cos(theta)
+#else
+#error "unknown SCATTERING"
+#endif
+}
+
+// Distance along the ray at depression a from `origin` to the triangle's plane (or -1).
+float hit(vec3 origin, float a) {
+    float denom = dot(g_plane.xyz, vec3(0.0, cos(a), -sin(a)));
+    return denom < -1e-9 ? (g_plane.w - dot(g_plane.xyz, origin)) / denom : -1.0;
+}
+
+void main() {
+    vec3 col = texelFetch(columns, ivec2(int(gl_FragCoord.x), 0), 0).xyz;
+    float y = (gl_FragCoord.y / rows_per_ping - 0.5) * spacing;
+    vec3 origin = vec3(y, 0.0, 0.0);
+    vec3 dir = vec3(0.0, cos(col.x), -sin(col.x));
+    float cos_t = -dot(g_plane.xyz, dir);
+    float t = hit(origin, col.x);
+    if (!(t > 0.0)) t = length(g_q - origin);   // grazing or back face: range of the fragment
+    float w = 0.0;
+    float t0 = t, t1 = t;
+    if (cos_t > 0.0) {
+        w = g_refl * scattering_over_cos(cos_t) * t * col.y * row_width;
+        float ta = hit(origin, col.x - col.z);
+        float tb = hit(origin, col.x + col.z);
+        t0 = ta > 0.0 ? min(ta, tb > 0.0 ? tb : ta) : t;
+        t1 = ta > 0.0 ? max(ta, tb > 0.0 ? tb : ta) : t;
+        t0 = min(t0, t);
+        t1 = max(t1, t);
+    }
+    out_sample = vec4(t0, t1, w, 0.0);
+    gl_FragDepth = clamp(t / far_range, 0.0, 1.0);
+}
+#endif

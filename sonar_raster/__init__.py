@@ -1,0 +1,51 @@
+"""sonar_raster: side-looking sonar images from 3D scenes with headless OpenGL, and back.
+
+The data flow, top to bottom: a :class:`Scene` (triangles, reflectivity) and a :class:`Sonar`
+with a :class:`Trajectory` go into a renderer (:func:`render_raster` on OpenGL, or
+:func:`render_reference` in numpy), which returns a :class:`SonarImage`; :func:`write_image`
+writes it as EXR/PNG with a JSON sidecar. Heavy modules load on first use, so importing the
+package stays fast.
+"""
+
+from __future__ import annotations
+
+from importlib import import_module
+from typing import Any
+
+from .errors import SonarRasterError
+from .image import SonarImage
+from .scene import MeshPart, Scene, build_scene
+from .sonar import BeamPattern, Sonar
+from .trajectory import Trajectory
+
+__all__ = [
+    "BeamPattern",
+    "MeshPart",
+    "RasterRenderer",
+    "RasterSettings",
+    "Scene",
+    "Sonar",
+    "SonarImage",
+    "SonarRasterError",
+    "Trajectory",
+    "build_scene",
+    "load_scene_file",
+    "render_raster",
+    "render_reference",
+    "write_image",
+]
+
+_LAZY = {
+    "RasterRenderer": "raster",
+    "RasterSettings": "raster",
+    "render_raster": "raster",
+    "render_reference": "reference",
+    "write_image": "io",
+    "load_scene_file": "description",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(import_module(f".{_LAZY[name]}", __name__), name)
+    raise AttributeError(f"module 'sonar_raster' has no attribute {name!r}")

@@ -1,0 +1,64 @@
+"""Uniform barycentric subdivision of triangles whose longest edge exceeds a size."""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+
+@lru_cache(maxsize=64)
+def _pattern(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Barycentric (u, v) of the n² sub-triangles' corners, shape (n², 3, 2), orientation kept."""
+    tris = []
+    for i in range(n):
+        for j in range(n - i):
+            tris.append(((i, j), (i + 1, j), (i, j + 1)))
+            if i + j <= n - 2:
+                tris.append(((i + 1, j), (i + 1, j + 1), (i, j + 1)))
+    return np.asarray(tris, dtype=np.float64) / n, np.asarray(n)
+
+
+def subdivision_counts(tri: np.ndarray, max_edge: float) -> np.ndarray:
+    """Pieces per edge ``n`` for each triangle of ``tri`` (m, 3, 3): ceil(longest edge / max_edge)."""
+    edges = np.stack([tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 1], tri[:, 0] - tri[:, 2]], axis=1)
+    longest = np.sqrt(np.einsum("mkj,mkj->mk", edges, edges).max(axis=1))
+    return np.maximum(1, np.ceil(longest / max_edge)).astype(np.int64)
+
+
+def subdivide(tri: np.ndarray, counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Split each triangle ``k`` into ``counts[k]**2`` congruent pieces.
+
+    Parameters
+    ----------
+    tri : ndarray, shape (m, 3, 3)
+        Triangle corners.
+    counts : ndarray, shape (m,), int
+        Pieces per edge for each triangle.
+
+    Returns
+    -------
+    pieces : ndarray, shape (p, 3, 3)
+        Sub-triangle corners, same orientation as their parent.
+    parent : ndarray, shape (p,), int64
+        Index of each piece's parent triangle.
+    """
+    out, parents = [], []
+    for n in np.unique(counts):
+        idx = np.nonzero(counts == n)[0]
+        if n == 1:
+            out.append(tri[idx])
+            parents.append(idx)
+            continue
+        uv, _ = _pattern(int(n))
+        t = tri[idx]
+        e1, e2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
+        pts = (
+            t[:, None, None, 0]
+            + uv[None, :, :, 0, None] * e1[:, None, None]
+            + uv[None, :, :, 1, None] * e2[:, None, None]
+        )
+        out.append(pts.reshape(-1, 3, 3))
+        parents.append(np.repeat(idx, len(uv)))
+    order = np.argsort(np.concatenate(parents), kind="stable")
+    return np.concatenate(out)[order], np.concatenate(parents)[order]

@@ -1,0 +1,50 @@
+"""SonarImage: the raw intensity images a renderer returns, with what made them."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .sonar import Sonar
+
+
+@dataclass(frozen=True)
+class SonarImage:
+    """Raw intensity per side.
+
+    Attributes
+    ----------
+    sides : dict of str to ndarray, shape (pings, bins), float32
+        Keys are "port" and/or "starboard". Rows are pings in time order, columns are slant
+        range bins from near to far; bin k covers ``[k, k + 1) * sonar.range_bin`` metres.
+        Values are the beam-weighted backscattering area ``Σ Φ R max(0, cos θ) dA`` in m²
+        (K = 1) over the visible surface in the bin's range ring and the ping's along-track width.
+    sonar : Sonar
+        The sonar that made the image.
+    metadata : dict
+        Anything needed to reproduce the image (scene, trajectory, renderer settings).
+    """
+
+    sides: dict[str, np.ndarray]
+    sonar: Sonar
+    metadata: dict = field(default_factory=dict)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(pings, bins) of each side."""
+        first = next(iter(self.sides.values()))
+        return (int(first.shape[0]), int(first.shape[1]))
+
+    def display(self) -> np.ndarray:
+        """Both sides in one array as viewers show them, shape (pings, 2 * bins) or (pings, bins).
+
+        Port is on the left with range increasing to the left; starboard on the right with
+        range increasing to the right. A missing side is left out.
+        """
+        parts = []
+        if "port" in self.sides:
+            parts.append(self.sides["port"][:, ::-1])
+        if "starboard" in self.sides:
+            parts.append(self.sides["starboard"])
+        return np.concatenate(parts, axis=1)

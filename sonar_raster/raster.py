@@ -1,0 +1,370 @@
+"""The GL renderer: scene + sonar + trajectory → raw side-scan intensity, on moderngl.
+
+Pass 1 (``shaders/ping_samples.glsl``) draws the whole scene once per straight track segment
+and side into a (ping row × look-angle column) float framebuffer: each texel is one ray of the
+fan, holding the exact slant range of its nearest hit and the weight ``Φ R r dα dy`` (Lambert).
+The depth test keeps the nearest hit, so objects shadow what lies behind them.
+Pass 2 (``shaders/range_accumulate.glsl``) adds the weights into (ping × range bin) cells with
+exact fixed-point integer atomics. Only this module knows OpenGL.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from ._shaders import specialise
+from ._subdivide import subdivide, subdivision_counts
+from ._warp import Warp
+from .errors import SonarRasterError
+from .glcontext import create_context, release_context
+from .image import SonarImage
+from .scene import Scene
+from .sonar import Sonar
+from .trajectory import Segment, Trajectory
+
+log = logging.getLogger(__name__)
+
+MAX_TEXTURE = 16384
+MAX_TEXELS = 1 << 26          # largest framebuffer per draw (64 M samples, 768 MiB of targets)
+_FIXED_POINT_TOP = float(1 << 30)
+_GL_DEPTH_CLAMP = 0x864F
+_SPLITS = ("nearest", "linear", "footprint")
+
+
+@dataclass(frozen=True)
+class RasterSettings:
+    """Sampling settings of the GL renderer.
+
+    Attributes
+    ----------
+    oversample : float
+        Look-angle samples per range bin over flat ground at the nominal altitude.
+    along_samples : int
+        Rays per ping along track (rows per ping); their weights share the ping's width.
+    split : {"footprint", "nearest", "linear"}
+        How a sample's weight goes into range bins: spread over the range interval its ray
+        bundle covers on the surface (exact for planar pieces), all into the bin holding its
+        centre range, or split between the two nearest bin centres.
+    max_edge : float or None
+        Triangles with a longer edge (metres) are subdivided so their outlines follow the
+        curved projection; None uses 20 range bins.
+    near_nadir : float
+        Floor of the warp's slope near nadir, as a fraction of the altitude (see ``_warp``).
+    """
+
+    oversample: float = 4.0
+    along_samples: int = 1
+    split: str = "footprint"
+    max_edge: float | None = None
+    near_nadir: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.oversample) and 0 < self.oversample <= 64):
+            raise SonarRasterError("oversample must be in (0, 64] samples per range bin")
+        if not (isinstance(self.along_samples, int) and 1 <= self.along_samples <= 64):
+            raise SonarRasterError("along_samples must be an integer from 1 to 64")
+        if self.split not in _SPLITS:
+            raise SonarRasterError(f"split must be one of {', '.join(_SPLITS)}")
+        if self.max_edge is not None and not self.max_edge > 0:
+            raise SonarRasterError("max_edge must be > 0 metres")
+
+
+@dataclass(frozen=True)
+class _Draw:
+    """Everything one (segment, side) draw needs, computed on the CPU in float64."""
+
+    segment: Segment
+    side: str
+    axis_side: np.ndarray
+    frame_sign: float
+    warp: Warp
+    beam_axis: float
+    rows: int              # pings rendered (1 for a stationary segment)
+    spacing: float         # along-track metres per ping row block
+
+
+class RasterRenderer:
+    """Owns one headless GL context and every GL object made on it.
+
+    Use as a context manager, or call :meth:`release` (safe to call twice).
+
+    Parameters
+    ----------
+    backend : {"egl", "osmesa"} or None
+        GL backend; None reads ``SONAR_RASTER_GL`` then tries EGL and OSMesa.
+    settings : RasterSettings
+        Sampling settings.
+    """
+
+    def __init__(self, backend: str | None = None, settings: RasterSettings | None = None):
+        self.settings = settings or RasterSettings()
+        self.ctx, self.backend = create_context(backend)
+        self._programs: dict[str, Any] = {}
+        self._scene_key: tuple | None = None
+        self._geometry: dict[str, Any] = {}
+
+    # -- lifetime ---------------------------------------------------------------------------
+    def release(self) -> None:
+        """Release every GL object and the context."""
+        if self.ctx is None:
+            return
+        self._release_geometry()
+        for prog in self._programs.values():
+            prog.release()
+        self._programs.clear()
+        release_context(self.ctx)
+        self.ctx = None
+
+    def __enter__(self) -> RasterRenderer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.release()
+
+    @property
+    def gl_info(self) -> dict[str, str]:
+        """Backend, renderer and version strings of the context."""
+        return {
+            "gl_backend": self.backend,
+            "gl_renderer": self.ctx.info["GL_RENDERER"],
+            "gl_version": self.ctx.info["GL_VERSION"],
+        }
+
+    # -- programs ---------------------------------------------------------------------------
+    def _program(self, key: str) -> Any:
+        if key not in self._programs:
+            if key == "samples":
+                d = {"SCATTERING": 1}
+                self._programs[key] = self.ctx.program(
+                    vertex_shader=specialise("ping_samples.glsl", "VERTEX_SHADER", d),
+                    geometry_shader=specialise("ping_samples.glsl", "GEOMETRY_SHADER", d),
+                    fragment_shader=specialise("ping_samples.glsl", "FRAGMENT_SHADER", d),
+                )
+            else:
+                d = {"SPLIT": _SPLITS.index(self.settings.split)}
+                self._programs[key] = self.ctx.compute_shader(
+                    specialise("range_accumulate.glsl", "COMPUTE_SHADER", d)
+                )
+        return self._programs[key]
+
+    # -- geometry ---------------------------------------------------------------------------
+    def _release_geometry(self) -> None:
+        for obj in self._geometry.values():
+            if hasattr(obj, "release"):
+                obj.release()
+        self._geometry.clear()
+        self._scene_key = None
+
+    def _upload(self, scene: Scene, origin: np.ndarray, max_edge: float) -> None:
+        key = (id(scene), tuple(origin), max_edge)
+        if key == self._scene_key:
+            return
+        self._release_geometry()
+        vertices = scene.vertices - origin                      # float64 shift, then float32
+        faces, refl = scene.faces, scene.reflectivity
+        tri = vertices[faces]
+        counts = subdivision_counts(tri, max_edge)
+        big = counts > 1
+        if big.any():
+            pieces, parent = subdivide(tri[big], counts[big])
+            keep = faces[~big]
+            extra = pieces.reshape(-1, 3)
+            vertices = np.concatenate([vertices, extra])
+            new_faces = len(scene.vertices) + np.arange(len(extra)).reshape(-1, 3)
+            faces = np.concatenate([keep, new_faces])
+            refl = np.concatenate([refl[~big], refl[big][parent]])
+            log.info("subdivided %d large triangles into %d", int(big.sum()), len(pieces))
+        ctx = self.ctx
+        vbo = ctx.buffer(vertices.astype("f4").tobytes())
+        ibo = ctx.buffer(faces.astype("u4").tobytes())
+        face_buf = ctx.buffer(refl.astype("f4").tobytes())
+        vao = ctx.vertex_array(self._program("samples"), [(vbo, "3f", "in_pos")], index_buffer=ibo,
+                               index_element_size=4)
+        self._geometry = {"vbo": vbo, "ibo": ibo, "faces": face_buf, "vao": vao,
+                          "n_faces": len(faces), "r_max": float(refl.max(initial=0.0))}
+        self._scene_key = key
+
+    # -- planning ---------------------------------------------------------------------------
+    def _plan(self, scene: Scene, sonar: Sonar, trajectory: Trajectory) -> list[_Draw]:
+        tol = sonar.range_bin / 4.0
+        along = self.settings.along_samples
+        max_rows = max(1, min(MAX_TEXTURE, MAX_TEXELS // self._columns_total_estimate(sonar))) // along
+        z_top = float(scene.bounds[1, 2])
+        draws = []
+        for seg in trajectory.segments(tol, max_count=max(1, max_rows)):
+            roll = float(np.mean(trajectory.roll[seg.first:seg.first + seg.count]))
+            altitude = float(seg.origin[2] - scene.ground_z)
+            alpha_top = math.atan2(float(seg.origin[2]) - z_top, sonar.max_range)
+            warp = Warp.make(altitude, sonar.max_range, alpha_top, self.settings.near_nadir)
+            stationary = seg.spacing == 0.0
+            for side in sonar.sides:
+                sign = 1.0 if side == "starboard" else -1.0
+                axis_side = sign * seg.starboard
+                det = float(np.linalg.det(np.stack([seg.along, axis_side, seg.up])))
+                draws.append(_Draw(
+                    segment=seg, side=side, axis_side=axis_side, frame_sign=det, warp=warp,
+                    beam_axis=sonar.tilt + sign * roll,
+                    rows=1 if stationary else seg.count,
+                    spacing=seg.width if stationary else seg.spacing,
+                ))
+        return draws
+
+    def _columns_total_estimate(self, sonar: Sonar) -> int:
+        return min(MAX_TEXTURE, int(math.ceil(self.settings.oversample * sonar.n_bins * 1.2)) + 1)
+
+    def _columns_total(self, warp: Warp, sonar: Sonar) -> int:
+        rho_lo, rho_hi = warp.rho_range
+        return max(8, int(math.ceil(self.settings.oversample * (rho_hi - rho_lo) / sonar.range_bin)))
+
+    # -- rendering --------------------------------------------------------------------------
+    def render(self, scene: Scene, sonar: Sonar, trajectory: Trajectory,
+               progress: bool = False) -> SonarImage:
+        """Render one image per side.
+
+        Parameters
+        ----------
+        scene : Scene
+        sonar : Sonar
+        trajectory : Trajectory
+        progress : bool
+            Show a progress bar over the draws.
+
+        Returns
+        -------
+        SonarImage
+            float32 (pings × bins) per side; see :class:`SonarImage` for units.
+        """
+        if self.ctx is None:
+            raise SonarRasterError("this renderer was released; make a new one")
+        origin = trajectory.positions[0].copy()
+        max_edge = self.settings.max_edge or 20.0 * sonar.range_bin
+        self._upload(scene, origin, max_edge)
+        draws = self._plan(scene, sonar, trajectory)
+        self._max_range = sonar.max_range
+        tables = [self._column_tables(d, sonar) for d in draws]
+        scale = self._fixed_point_scale(draws, tables)
+        n_pings, n_bins = trajectory.n_pings, sonar.n_bins
+        cells = {side: self.ctx.buffer(reserve=n_pings * n_bins * 8) for side in sonar.sides}
+        for buf in cells.values():
+            buf.clear()
+        try:
+            items = list(zip(draws, tables))
+            if progress:
+                from tqdm import tqdm
+
+                items = tqdm(items, desc="rendering", unit="draw")
+            for draw, table in items:
+                self._draw(draw, table, origin, sonar, scale, cells[draw.side])
+            sides = {s: self._read(cells[s], draws, scale, n_pings, n_bins, s) for s in sonar.sides}
+        finally:
+            for buf in cells.values():
+                buf.release()
+        meta = {"renderer": "gl", "settings": asdict(self.settings), **self.gl_info,
+                "draws": len(draws), "triangles": int(self._geometry["n_faces"])}
+        return SonarImage(sides=sides, sonar=sonar, metadata=meta)
+
+    def _column_tables(self, draw: _Draw, sonar: Sonar) -> list[tuple[int, int, int, np.ndarray]]:
+        """Per column tile: (first column, count, total, (alpha, Φ dα) float32 array)."""
+        total = self._columns_total(draw.warp, sonar)
+        out = []
+        for first in range(0, total, MAX_TEXTURE):
+            count = min(MAX_TEXTURE, total - first)
+            alpha, dalpha = draw.warp.columns(first, count, total)
+            phi = sonar.beam(alpha - draw.beam_axis)
+            table = np.stack([alpha, phi * dalpha, 0.5 * dalpha, np.zeros_like(alpha)], axis=1)
+            out.append((first, count, total, table.astype("f4")))
+        return out
+
+    def _fixed_point_scale(self, draws: list[_Draw], tables: list) -> float:
+        bound = 0.0
+        for draw, tiles in zip(draws, tables):
+            phid = max(float(t[3][:, 1].max()) for t in tiles)
+            row_width = draw.segment.width / self.settings.along_samples
+            # Only samples inside the image (slant range <= max range) are deposited.
+            bound = max(bound, self._geometry["r_max"] * phid * self._max_range * row_width)
+        return _FIXED_POINT_TOP / bound if bound > 0 else 1.0
+
+
+    def _draw(self, draw: _Draw, tiles: list, origin: np.ndarray, sonar: Sonar, scale: float,
+              cells: Any) -> None:
+        ctx = self.ctx
+        seg = draw.segment
+        along = self.settings.along_samples
+        height = draw.rows * along
+        prog = self._program("samples")
+        comp = self._program("accumulate")
+        far = 1.5 * sonar.max_range
+        rho_lo_all, rho_hi_all = draw.warp.rho_range
+        uniforms = {
+            "seg_origin": tuple((seg.origin - origin).astype("f4")),
+            "axis_along": tuple(seg.along), "axis_side": tuple(draw.axis_side),
+            "axis_up": tuple(seg.up),
+            "warp_h": draw.warp.h, "warp_c": draw.warp.c, "alpha0": draw.warp.alpha0,
+            "rho0": draw.warp.rho0, "slope0": draw.warp.slope0,
+            "row_scale": 2.0 / (draw.spacing * draw.rows),
+            "row_offset": 2.0 * 0.5 / draw.rows - 1.0,
+            "far_range": far, "alpha_span_max": 0.5 * math.pi,
+            "spacing": draw.spacing, "rows_per_ping": float(along),
+            "row_width": seg.width / along,
+            # -1 when the (along, side, up) frame is left-handed: flips the computed normals.
+            "frame_sign": draw.frame_sign,
+        }
+        for name, value in uniforms.items():
+            if name in prog:
+                prog[name].value = value
+        self._geometry["faces"].bind_to_storage_buffer(0)
+        ctx.enable_direct(_GL_DEPTH_CLAMP)
+        for first, count, total, table in tiles:
+            d_rho = (rho_hi_all - rho_lo_all) / total
+            prog["rho_lo"].value = rho_lo_all + first * d_rho
+            prog["rho_hi"].value = rho_lo_all + (first + count) * d_rho
+            col_tex = ctx.texture((count, 1), 4, table.tobytes(), dtype="f4")
+            col_tex.filter = (0x2600, 0x2600)  # GL_NEAREST
+            target = ctx.texture((count, height), 4, dtype="f4")
+            depth = ctx.depth_texture((count, height))
+            fbo = ctx.framebuffer([target], depth)
+            try:
+                fbo.use()
+                fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+                ctx.enable(ctx.DEPTH_TEST)
+                col_tex.use(location=1)
+                prog["columns"].value = 1
+                self._geometry["vao"].render(mode=ctx.TRIANGLES)
+                target.use(location=0)
+                cells.bind_to_storage_buffer(1)
+                comp["samples"].value = 0
+                comp["size"].value = (count, height)
+                comp["rows_per_ping"].value = along
+                comp["ping_offset"].value = seg.first
+                comp["n_bins"].value = sonar.n_bins
+                comp["inv_bin"].value = 1.0 / sonar.range_bin
+                comp["scale"].value = scale
+                comp.run(group_x=(count + 63) // 64, group_y=(height + 3) // 4)
+                ctx.memory_barrier()
+            finally:
+                for obj in (fbo, target, depth, col_tex):
+                    obj.release()
+
+    def _read(self, cells: Any, draws: list[_Draw], scale: float, n_pings: int, n_bins: int,
+              side: str) -> np.ndarray:
+        raw = np.frombuffer(cells.read(), dtype=np.uint32).reshape(n_pings, n_bins, 2)
+        total = raw[..., 0].astype(np.float64) + raw[..., 1].astype(np.float64) * 4294967296.0
+        image = (total / scale).astype(np.float32)
+        for draw in draws:
+            seg = draw.segment
+            if draw.side == side and draw.rows == 1 and seg.count > 1:
+                image[seg.first + 1:seg.first + seg.count] = image[seg.first]
+        return image
+
+
+def render_raster(scene: Scene, sonar: Sonar, trajectory: Trajectory, *,
+                  backend: str | None = None, settings: RasterSettings | None = None,
+                  progress: bool = False) -> SonarImage:
+    """Render with a temporary :class:`RasterRenderer` (see its ``render``)."""
+    with RasterRenderer(backend, settings) as renderer:
+        return renderer.render(scene, sonar, trajectory, progress=progress)

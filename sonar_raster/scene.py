@@ -1,0 +1,183 @@
+"""Scene: triangles with per-face reflectivity and object ids, in world metres (float64).
+
+Conventions: right-handed world, metres, z up. A seabed below the sonar has z < sonar z.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import SonarRasterError
+
+log = logging.getLogger(__name__)
+
+#: Relative area below which a triangle counts as degenerate and is dropped.
+_DEGENERATE_REL_AREA = 1e-14
+
+
+@dataclass(frozen=True)
+class MeshPart:
+    """One object of a scene before merging.
+
+    Parameters
+    ----------
+    vertices : ndarray, shape (n, 3), float64
+        World coordinates in metres.
+    faces : ndarray, shape (m, 3), int
+        Vertex indices of each triangle, counter-clockwise seen from the front.
+    reflectivity : float or ndarray, shape (m,)
+        Backscatter reflectivity R in [0, inf), per object or per face.
+    name : str
+        Object name (used for labels).
+    is_seabed : bool
+        True for the seabed surface (its mean level sets the nominal altitude).
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    reflectivity: float | np.ndarray = 0.5
+    name: str = "object"
+    is_seabed: bool = False
+
+
+@dataclass(frozen=True)
+class Scene:
+    """Triangles ready for rendering.
+
+    Attributes
+    ----------
+    vertices : ndarray, shape (n, 3), float64
+        World coordinates in metres.
+    faces : ndarray, shape (m, 3), int64
+        Triangle vertex indices; no degenerate triangles.
+    reflectivity : ndarray, shape (m,), float64
+        Reflectivity R of each face.
+    object_id : ndarray, shape (m,), int32
+        Index into ``names`` for each face.
+    names : tuple of str
+        Object names; id 0 is the first part.
+    ground_z : float
+        Nominal seabed level in metres (mean z of the seabed parts, else the scene's lowest z).
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    reflectivity: np.ndarray
+    object_id: np.ndarray
+    names: tuple[str, ...] = field(default_factory=tuple)
+    ground_z: float = 0.0
+
+    @property
+    def n_triangles(self) -> int:
+        """Number of triangles."""
+        return int(self.faces.shape[0])
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """Axis-aligned bounds, shape (2, 3): min and max corner in metres."""
+        used = self.vertices[np.unique(self.faces)] if self.faces.size else self.vertices
+        return np.stack([used.min(axis=0), used.max(axis=0)])
+
+    def triangles(self) -> np.ndarray:
+        """Corner coordinates, shape (m, 3, 3), float64."""
+        return self.vertices[self.faces]
+
+    def face_normals_areas(self) -> tuple[np.ndarray, np.ndarray]:
+        """Unit face normals, shape (m, 3), and areas in m², shape (m,)."""
+        tri = self.triangles()
+        cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        norm = np.linalg.norm(cross, axis=1)
+        return cross / norm[:, None], 0.5 * norm
+
+    def translated(self, offset: np.ndarray) -> Scene:
+        """Return the scene moved by ``offset`` (metres, shape (3,))."""
+        offset = np.asarray(offset, dtype=np.float64)
+        return Scene(
+            self.vertices + offset,
+            self.faces,
+            self.reflectivity,
+            self.object_id,
+            self.names,
+            self.ground_z + float(offset[2]),
+        )
+
+
+def _clean_faces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Boolean mask of faces that are non-degenerate (positive area, distinct corners)."""
+    tri = vertices[faces]
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    area2 = np.einsum("ij,ij->i", cross, cross)
+    edge2 = max(float(np.ptp(vertices, axis=0).max()) ** 2, 1e-300) if len(vertices) else 1.0
+    return area2 > (_DEGENERATE_REL_AREA * edge2) ** 2
+
+
+def build_scene(parts: list[MeshPart]) -> Scene:
+    """Merge mesh parts into one validated :class:`Scene`.
+
+    Non-finite vertices raise; degenerate and zero-area triangles are dropped and counted in
+    the log.
+
+    Parameters
+    ----------
+    parts : list of MeshPart
+        The objects, in id order.
+
+    Returns
+    -------
+    Scene
+
+    Raises
+    ------
+    SonarRasterError
+        If there are no triangles, a vertex is NaN or infinite, an index is out of range, or a
+        reflectivity is negative or not finite.
+    """
+    verts, faces, refl, ids, names, ground = [], [], [], [], [], []
+    offset = 0
+    dropped = 0
+    for k, part in enumerate(parts):
+        v = np.asarray(part.vertices, dtype=np.float64).reshape(-1, 3)
+        f = np.asarray(part.faces, dtype=np.int64).reshape(-1, 3)
+        if not np.all(np.isfinite(v)):
+            raise SonarRasterError(
+                f"object '{part.name}' has NaN or infinite vertex coordinates; fix the model file"
+            )
+        if f.size and (f.min() < 0 or f.max() >= len(v)):
+            raise SonarRasterError(
+                f"object '{part.name}' has a face index outside its {len(v)} vertices; "
+                "the model file is corrupt"
+            )
+        r = np.broadcast_to(np.asarray(part.reflectivity, dtype=np.float64), (len(f),))
+        if not np.all(np.isfinite(r)) or np.any(r < 0):
+            raise SonarRasterError(
+                f"object '{part.name}' has a negative or non-finite reflectivity; use R >= 0"
+            )
+        keep = _clean_faces(v, f) if len(f) else np.zeros(0, dtype=bool)
+        dropped += int((~keep).sum())
+        f, r = f[keep], r[keep]
+        verts.append(v)
+        faces.append(f + offset)
+        refl.append(r)
+        ids.append(np.full(len(f), k, dtype=np.int32))
+        names.append(part.name)
+        if part.is_seabed and len(f):
+            ground.append(float(v[np.unique(f)][:, 2].mean()))
+        offset += len(v)
+    if dropped:
+        log.warning("dropped %d degenerate or zero-area triangles", dropped)
+    all_faces = np.concatenate(faces) if faces else np.zeros((0, 3), dtype=np.int64)
+    if len(all_faces) == 0:
+        raise SonarRasterError("the scene has no triangles; give a model or a seabed to render")
+    vertices = np.concatenate(verts)
+    ground_z = float(np.mean(ground)) if ground else float(vertices[all_faces][:, :, 2].min())
+    return Scene(
+        vertices=vertices,
+        faces=all_faces,
+        reflectivity=np.concatenate(refl),
+        object_id=np.concatenate(ids),
+        names=tuple(names),
+        ground_z=ground_z,
+    )

@@ -1,0 +1,198 @@
+"""Trajectory: ping positions and headings, and their split into near-straight segments.
+
+Heading is a compass angle: 0 points along +y (north), 90 degrees along +x (east). The
+along-track axis of a ping is its heading; across-track is positive to starboard.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import SonarRasterError
+
+
+def heading_axes(heading: float) -> tuple[np.ndarray, np.ndarray]:
+    """Along-track and starboard unit vectors for a compass heading in radians."""
+    along = np.array([math.sin(heading), math.cos(heading), 0.0])
+    starboard = np.array([math.cos(heading), -math.sin(heading), 0.0])
+    return along, starboard
+
+
+@dataclass(frozen=True)
+class Segment:
+    """Pings on one straight line at equal spacing, rendered by one draw per side.
+
+    Attributes
+    ----------
+    first, count : int
+        Ping indices ``first .. first + count - 1`` of the trajectory.
+    origin : ndarray, shape (3,), float64
+        Position of the first ping, world metres.
+    along, starboard, up : ndarray, shape (3,), float64
+        Orthonormal frame: along-track, to starboard, and up (z-ish).
+    spacing : float
+        Distance between consecutive pings along ``along``, metres; 0 when the pings coincide
+        (a stationary sonar: every ping gives the same row).
+    width : float
+        Along-track width each ping integrates over, metres (``spacing``, or the trajectory's
+        typical spacing for a lone or stationary ping, or 1 m when nothing moves).
+    """
+
+    first: int
+    count: int
+    origin: np.ndarray
+    along: np.ndarray
+    starboard: np.ndarray
+    up: np.ndarray
+    spacing: float
+    width: float
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Ping poses in time order.
+
+    Attributes
+    ----------
+    positions : ndarray, shape (n, 3), float64
+        Transducer positions, world metres.
+    headings : ndarray, shape (n,), float64
+        Compass headings in radians.
+    roll : ndarray, shape (n,), float64
+        Roll in radians, positive starboard down; it tilts the beam on each side.
+    """
+
+    positions: np.ndarray
+    headings: np.ndarray
+    roll: np.ndarray
+
+    def __post_init__(self) -> None:
+        p = np.asarray(self.positions, dtype=np.float64).reshape(-1, 3)
+        h = np.asarray(self.headings, dtype=np.float64).reshape(-1)
+        r = np.broadcast_to(np.asarray(self.roll, dtype=np.float64), h.shape).copy()
+        if len(p) == 0:
+            raise SonarRasterError("the trajectory has no pings; use at least one ping")
+        if len(h) != len(p):
+            raise SonarRasterError("trajectory positions and headings differ in length")
+        if not (np.all(np.isfinite(p)) and np.all(np.isfinite(h)) and np.all(np.isfinite(r))):
+            raise SonarRasterError("the trajectory has NaN or infinite positions or angles")
+        object.__setattr__(self, "positions", p)
+        object.__setattr__(self, "headings", h)
+        object.__setattr__(self, "roll", r)
+
+    @property
+    def n_pings(self) -> int:
+        """Number of pings."""
+        return len(self.positions)
+
+    @classmethod
+    def straight(
+        cls, start: tuple[float, float, float], heading_deg: float, spacing: float, count: int
+    ) -> Trajectory:
+        """A straight, level track of ``count`` pings ``spacing`` metres apart."""
+        if not (isinstance(count, (int, np.integer)) and count >= 1):
+            raise SonarRasterError(f"ping count must be a positive integer, got {count!r}")
+        if not (math.isfinite(spacing) and spacing > 0):
+            raise SonarRasterError(f"ping spacing must be > 0 metres, got {spacing!r}")
+        heading = math.radians(heading_deg)
+        along, _ = heading_axes(heading)
+        pos = np.asarray(start, dtype=np.float64) + np.arange(count)[:, None] * spacing * along
+        return cls(pos, np.full(count, heading), np.zeros(count))
+
+    @classmethod
+    def from_csv(cls, path: str) -> Trajectory:
+        """Read poses from a CSV with a header naming ``x, y, z, heading_deg`` [, ``roll_deg``]."""
+        try:
+            data = np.genfromtxt(path, delimiter=",", names=True, dtype=np.float64, ndmin=1)
+        except (OSError, ValueError) as exc:
+            raise SonarRasterError(f"cannot read trajectory CSV {path}: {exc}") from None
+        names = data.dtype.names or ()
+        missing = [c for c in ("x", "y", "z", "heading_deg") if c not in names]
+        if missing:
+            raise SonarRasterError(f"{path}: trajectory CSV lacks column(s) {', '.join(missing)}")
+        roll = np.radians(data["roll_deg"]) if "roll_deg" in names else np.zeros(len(data))
+        pos = np.stack([data["x"], data["y"], data["z"]], axis=1)
+        return cls(pos, np.radians(data["heading_deg"]), roll)
+
+    @property
+    def typical_spacing(self) -> float:
+        """Median distance between consecutive pings, or 1 m if the sonar never moves."""
+        if self.n_pings < 2:
+            return 1.0
+        d = np.linalg.norm(np.diff(self.positions, axis=0), axis=1)
+        d = d[d > 1e-9]
+        return float(np.median(d)) if len(d) else 1.0
+
+    def segments(self, tolerance: float, max_count: int = 16384) -> list[Segment]:
+        """Split the pings into straight, evenly spaced runs.
+
+        A ping joins a segment while its position lies within ``tolerance`` metres of the
+        segment's uniform line, its heading within 5 degrees and its roll within 0.5 degrees of
+        the others; a lone ping forms its own segment.
+
+        Parameters
+        ----------
+        tolerance : float
+            Largest allowed position error, metres (a fraction of the range bin is sensible).
+        max_count : int
+            Most pings per segment (the framebuffer height limit).
+        """
+        out: list[Segment] = []
+        start = 0
+        n = self.n_pings
+        while start < n:
+            end = self._longest_run(start, tolerance, max_count)
+            out.append(self._make_segment(start, end))
+            start = end
+        return out
+
+    def _fits(self, start: int, end: int, tolerance: float) -> bool:
+        p = self.positions[start:end]
+        k = np.arange(end - start)[:, None] / max(end - start - 1, 1)
+        line = p[0] + k * (p[-1] - p[0])
+        if np.max(np.linalg.norm(p - line, axis=1)) > tolerance:
+            return False
+        dh = np.angle(np.exp(1j * (self.headings[start:end] - self.headings[start])))
+        if np.max(np.abs(dh)) >= math.radians(5.0):
+            return False
+        roll = self.roll[start:end]
+        return bool(np.ptp(roll) <= math.radians(0.5))
+
+    def _longest_run(self, start: int, tolerance: float, max_count: int) -> int:
+        n = min(self.n_pings, start + max_count)
+        good, step = start + 1, 1
+        while good < n:
+            trial = min(n, good + step)
+            if not self._fits(start, trial, tolerance):
+                break
+            good, step = trial, step * 2
+        else:
+            return good
+        lo, hi = good, min(n, good + step)
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            lo, hi = (mid, hi) if self._fits(start, mid, tolerance) else (lo, mid)
+        return lo
+
+    def _make_segment(self, start: int, end: int) -> Segment:
+        p = self.positions[start:end]
+        count = end - start
+        delta = p[-1] - p[0]
+        dist = float(np.linalg.norm(delta))
+        if count > 1 and dist > 1e-9:
+            along = delta / dist
+            spacing = dist / (count - 1)
+        else:
+            along, _ = heading_axes(float(self.headings[start]))
+            spacing = 0.0
+        horiz = math.hypot(along[0], along[1])
+        if horiz < 1e-6:
+            raise SonarRasterError("a vertical trajectory segment has no side-looking geometry")
+        starboard = np.cross(along, [0.0, 0.0, 1.0])
+        starboard /= np.linalg.norm(starboard)
+        up = np.cross(starboard, along)
+        width = spacing if spacing > 0 else self.typical_spacing
+        return Segment(start, count, p[0].copy(), along, starboard, up, spacing, width)
