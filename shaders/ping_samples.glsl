@@ -43,8 +43,11 @@ flat out float g_refl;
 out vec3 g_q;
 
 float warp(float a) {
-    // Pseudo slant range: h / sin(a) + c h (pi/2 - a) above alpha0, linear below it.
-    if (a >= alpha0) return warp_h / sin(a) + warp_c * warp_h * (1.5707963267948966 - a);
+    // Pseudo slant range: h / sin(a) + c h (pi/2 - a) between alpha0 and nadir, continued
+    // linearly on both sides so it keeps decreasing (beyond nadir lies the other side).
+    const float half_pi = 1.5707963267948966;
+    if (a > half_pi) return warp_h - (a - half_pi) * (warp_c + 1.0) * warp_h;
+    if (a >= alpha0) return warp_h / sin(a) + warp_c * warp_h * (half_pi - a);
     return rho0 + (alpha0 - a) * slope0;
 }
 

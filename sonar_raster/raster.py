@@ -107,6 +107,7 @@ class RasterRenderer:
         self._programs: dict[str, Any] = {}
         self._scene_key: tuple | None = None
         self._geometry: dict[str, Any] = {}
+        self._targets: dict[str, Any] = {}
 
     # -- lifetime ---------------------------------------------------------------------------
     def release(self) -> None:
@@ -114,6 +115,7 @@ class RasterRenderer:
         if self.ctx is None:
             return
         self._release_geometry()
+        self._release_targets()
         for prog in self._programs.values():
             prog.release()
         self._programs.clear()
@@ -189,6 +191,22 @@ class RasterRenderer:
                           "n_faces": len(faces), "r_max": float(refl.max(initial=0.0))}
         self._scene_key = key
 
+    def _release_targets(self) -> None:
+        for obj in self._targets.values():
+            obj.release()
+        self._targets.clear()
+
+    def _framebuffer(self, width: int, height: int) -> tuple[Any, Any]:
+        """The (framebuffer, sample texture) of this size, reused across draws."""
+        if self._targets and self._targets["color"].size != (width, height):
+            self._release_targets()
+        if not self._targets:
+            color = self.ctx.texture((width, height), 4, dtype="f4")
+            depth = self.ctx.depth_texture((width, height))
+            self._targets = {"fbo": self.ctx.framebuffer([color], depth), "color": color,
+                             "depth": depth}
+        return self._targets["fbo"], self._targets["color"]
+
     # -- planning ---------------------------------------------------------------------------
     def _plan(self, scene: Scene, sonar: Sonar, trajectory: Trajectory) -> list[_Draw]:
         tol = sonar.range_bin / 4.0
@@ -257,7 +275,7 @@ class RasterRenderer:
             if progress:
                 from tqdm import tqdm
 
-                items = tqdm(items, desc="rendering", unit="draw")
+                items = tqdm(items, desc="rendering", unit="draw", disable=None, leave=False)
             for draw, table in items:
                 self._draw(draw, table, origin, sonar, scale, cells[draw.side])
             sides = {s: self._read(cells[s], draws, scale, n_pings, n_bins, s) for s in sonar.sides}
@@ -324,10 +342,7 @@ class RasterRenderer:
             prog["rho_lo"].value = rho_lo_all + first * d_rho
             prog["rho_hi"].value = rho_lo_all + (first + count) * d_rho
             col_tex = ctx.texture((count, 1), 4, table.tobytes(), dtype="f4")
-            col_tex.filter = (0x2600, 0x2600)  # GL_NEAREST
-            target = ctx.texture((count, height), 4, dtype="f4")
-            depth = ctx.depth_texture((count, height))
-            fbo = ctx.framebuffer([target], depth)
+            fbo, target = self._framebuffer(count, height)
             try:
                 fbo.use()
                 fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
@@ -347,14 +362,13 @@ class RasterRenderer:
                 comp.run(group_x=(count + 63) // 64, group_y=(height + 3) // 4)
                 ctx.memory_barrier()
             finally:
-                for obj in (fbo, target, depth, col_tex):
-                    obj.release()
+                col_tex.release()
 
     def _read(self, cells: Any, draws: list[_Draw], scale: float, n_pings: int, n_bins: int,
               side: str) -> np.ndarray:
-        raw = np.frombuffer(cells.read(), dtype=np.uint32).reshape(n_pings, n_bins, 2)
-        total = raw[..., 0].astype(np.float64) + raw[..., 1].astype(np.float64) * 4294967296.0
-        image = (total / scale).astype(np.float32)
+        # Each cell is a (low, high) pair of uint32: read as one little-endian uint64.
+        total = np.frombuffer(cells.read(), dtype="<u8").reshape(n_pings, n_bins)
+        image = (total * (1.0 / scale)).astype(np.float32)
         for draw in draws:
             seg = draw.segment
             if draw.side == side and draw.rows == 1 and seg.count > 1:

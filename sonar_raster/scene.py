@@ -61,6 +61,8 @@ class Scene:
         Object names; id 0 is the first part.
     ground_z : float
         Nominal seabed level in metres (mean z of the seabed parts, else the scene's lowest z).
+    bounds : ndarray, shape (2, 3), float64
+        Min and max corner of the used vertices (computed when not given).
     """
 
     vertices: np.ndarray
@@ -69,17 +71,16 @@ class Scene:
     object_id: np.ndarray
     names: tuple[str, ...] = field(default_factory=tuple)
     ground_z: float = 0.0
+    bounds: np.ndarray = field(default=None, repr=False)  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        if self.bounds is None:
+            object.__setattr__(self, "bounds", _bounds(self.vertices, self.faces))
 
     @property
     def n_triangles(self) -> int:
         """Number of triangles."""
         return int(self.faces.shape[0])
-
-    @property
-    def bounds(self) -> np.ndarray:
-        """Axis-aligned bounds, shape (2, 3): min and max corner in metres."""
-        used = self.vertices[np.unique(self.faces)] if self.faces.size else self.vertices
-        return np.stack([used.min(axis=0), used.max(axis=0)])
 
     def triangles(self) -> np.ndarray:
         """Corner coordinates, shape (m, 3, 3), float64."""
@@ -102,7 +103,16 @@ class Scene:
             self.object_id,
             self.names,
             self.ground_z + float(offset[2]),
+            self.bounds + offset,
         )
+
+
+def _bounds(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Min and max corner, shape (2, 3), of the vertices that faces use."""
+    used = np.zeros(len(vertices), dtype=bool)
+    used[faces.ravel()] = True
+    v = vertices[used] if used.any() else vertices
+    return np.stack([v.min(axis=0), v.max(axis=0)])
 
 
 def _clean_faces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -164,7 +174,9 @@ def build_scene(parts: list[MeshPart]) -> Scene:
         ids.append(np.full(len(f), k, dtype=np.int32))
         names.append(part.name)
         if part.is_seabed and len(f):
-            ground.append(float(v[np.unique(f)][:, 2].mean()))
+            used = np.zeros(len(v), dtype=bool)
+            used[f.ravel()] = True
+            ground.append(float(v[used, 2].mean()))
         offset += len(v)
     if dropped:
         log.warning("dropped %d degenerate or zero-area triangles", dropped)
@@ -172,7 +184,8 @@ def build_scene(parts: list[MeshPart]) -> Scene:
     if len(all_faces) == 0:
         raise SonarRasterError("the scene has no triangles; give a model or a seabed to render")
     vertices = np.concatenate(verts)
-    ground_z = float(np.mean(ground)) if ground else float(vertices[all_faces][:, :, 2].min())
+    bounds = _bounds(vertices, all_faces)
+    ground_z = float(np.mean(ground)) if ground else float(bounds[0, 2])
     return Scene(
         vertices=vertices,
         faces=all_faces,
@@ -180,4 +193,5 @@ def build_scene(parts: list[MeshPart]) -> Scene:
         object_id=np.concatenate(ids),
         names=tuple(names),
         ground_z=ground_z,
+        bounds=bounds,
     )

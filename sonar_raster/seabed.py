@@ -131,7 +131,7 @@ def _face_reflectivity(reflectivity: float | np.ndarray, shape: tuple[int, int])
 # --------------------------------------------------------------------------- the heightfield
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Heightfield:
     """Heights on a regular grid.
 
@@ -461,8 +461,8 @@ def rough(
     rms_height : float
         Root-mean-square height about the mean, metres (default 5 cm, a sandy bed).
     spectral_exponent : float
-        ``gamma`` of the 2-D spectrum, in (2, 4) for a fractal surface of dimension
-        ``(8 - gamma) / 2``; the default 3.25 is the APL-UW model's typical value.
+        ``gamma`` of the 2-D spectrum, in (0, 8]; in (2, 4) for a fractal surface of
+        dimension ``(8 - gamma) / 2``; the default 3.25 is the APL-UW model's typical value.
     correlation_length : float
         Outer scale ``L`` of the relief, metres.
 
@@ -473,10 +473,13 @@ def rough(
     grid = _layout(size, center, resolution)
     rng = np.random.default_rng(_seed(seed))
     rms = _positive("rms_height", rms_height)
-    spectrum = _power_law(
-        _positive("spectral_exponent", spectral_exponent),
-        _positive("correlation_length", correlation_length),
-    )
+    exponent = _positive("spectral_exponent", spectral_exponent)
+    if exponent > 8.0:
+        raise SonarRasterError(
+            f"seabed 'spectral_exponent' must be in (0, 8], got {spectral_exponent!r}; "
+            "natural seabeds have 2 to 4"
+        )
+    spectrum = _power_law(exponent, _positive("correlation_length", correlation_length))
     return grid.heightfield(rms * _spectral_field(rng, grid, spectrum), _finite("depth", depth))
 
 
@@ -501,7 +504,8 @@ def ripples(
     ``s / wavelength + irregularity / 2 * psi(x, y)`` cycles, ``s`` the distance along
     ``direction_deg`` and ``psi`` a smooth unit-std random field correlated over five
     wavelengths, so crests wander by about ``irregularity / 2`` wavelengths and the local
-    wavelength changes slowly. Fine power-law roughness is added.
+    wavelength changes slowly. Fine roughness is added (:func:`rough`'s spectrum with exponent
+    3.25 and correlation length one wavelength).
 
     Parameters
     ----------
@@ -517,7 +521,8 @@ def ripples(
     irregularity : float
         0 for straight, regular crests, up to 1 for strongly sinuous ones.
     asymmetry : float
-        0 for symmetric ripples, up to < 1 for a near-vertical lee face.
+        0 for symmetric ripples, up to 0.95 (lee side 2.5 % of the wavelength). The default
+        0.4 with the default amplitude gives a 34 degree lee face, about sand's angle of repose.
     roughness : float or None
         RMS of the added small-scale roughness, metres; ``None`` gives ``amplitude / 10``.
 
@@ -540,7 +545,7 @@ def ripples(
         raise SonarRasterError(f"seabed 'roughness' must be >= 0, got {roughness!r}")
     heading = math.radians(_finite("direction_deg", direction_deg))
     x, y = grid.coords()
-    wander = _spectral_field(rng, grid, lambda k: np.exp(-((k * 5.0 * lam) ** 2)))
+    wander = _spectral_field(rng, grid, lambda k: _gauss(k * 5.0 * lam * math.sqrt(2.0)))
     phase = (x * math.sin(heading) + y * math.cos(heading)) / lam + 0.5 * irr * wander
     relief = amp * _ripple_profile(phase - np.floor(phase), 1.0 - lee)
     if rough_rms > 0:
@@ -600,6 +605,10 @@ def bumpy(
     width = _positive("bump_width", bump_width)
     rate = _positive("density", density)
     hollow = _fraction("hollow_fraction", hollow_fraction)
+    if width < max(grid.dx, grid.dy):
+        raise SonarRasterError(
+            f"bump_width {width:g} m is narrower than a cell; use resolution <= {width:g}"
+        )
     margin = 3.0 * 1.3 * width
     xmin, ymin = grid.x0 - margin, grid.y0 - margin
     wx = (grid.nx - 1) * grid.dx + 2 * margin
@@ -624,9 +633,17 @@ def _add_bump(relief: np.ndarray, grid: _Grid, cx: float, cy: float, h: float, s
     j1 = min(grid.ny, math.ceil((cy + 4 * s - grid.y0) / grid.dy) + 1)
     if i0 >= i1 or j0 >= j1:
         return
-    gx = np.exp(-0.5 * ((grid.x0 + grid.dx * np.arange(i0, i1) - cx) / s) ** 2)
-    gy = np.exp(-0.5 * ((grid.y0 + grid.dy * np.arange(j0, j1) - cy) / s) ** 2)
+    gx = _gauss((grid.x0 + grid.dx * np.arange(i0, i1) - cx) / s)
+    gy = _gauss((grid.y0 + grid.dy * np.arange(j0, j1) - cy) / s)
     relief[j0:j1, i0:i1] += h * np.outer(gy, gx)
+
+
+def _gauss(t: np.ndarray) -> np.ndarray:
+    """Return ``exp(-t² / 2)``, held at ``exp(-700)`` (1e-304) beyond ``|t| = 37.4``.
+
+    The floor keeps the result a normal float: no underflow under ``np.errstate(all="raise")``.
+    """
+    return np.exp(-0.5 * np.minimum(t * t, 1400.0))
 
 
 # --------------------------------------------------------------------------- grids and files

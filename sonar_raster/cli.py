@@ -1,0 +1,185 @@
+"""The ``sonar-raster`` command line: ``render``, ``scenes`` and ``doctor``.
+
+Heavy modules (moderngl, trimesh, OpenImageIO) load inside the commands, so ``--help``
+answers at once. Bad input ends with one line on stderr and exit status 2, with no traceback
+and no output file left behind.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from pathlib import Path
+
+from .errors import SonarRasterError
+
+EXIT_BAD_INPUT = 2
+_SIDE_CHOICES = {"port": ("port",), "starboard": ("starboard",), "both": ("port", "starboard")}
+_OUTPUT_SUFFIXES = (".png", ".exr")
+
+
+def _positive(kind: type):
+    def parse(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        if not value > 0 or value != value or value in (float("inf"),):
+            raise argparse.ArgumentTypeError(f"must be > 0, got {text}")
+        return value
+
+    parse.__name__ = f"positive {kind.__name__}"
+    return parse
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="sonar-raster",
+        description="Side-scan sonar images from 3D scenes, rendered with headless OpenGL.",
+    )
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    render = sub.add_parser("render", help="render a scene to PNG and/or EXR",
+                            description="Render a scene description (.toml), a bare model file "
+                            "(.wrl .gltf .glb .obj .ply .stl) or a bundled scene by name "
+                            "(see 'sonar-raster scenes') to sonar images.")
+    render.add_argument("scene", help="scene file, model file, or bundled scene name")
+    render.add_argument("-o", "--output", action="append", required=True, metavar="OUT",
+                        help="output .png (display image) or .exr (linear float); repeatable")
+    render.add_argument("--range", dest="max_range", type=_positive(float), metavar="METRES",
+                        help="maximum slant range")
+    render.add_argument("--range-bin", type=_positive(float), metavar="METRES",
+                        help="slant-range bin size")
+    render.add_argument("--altitude", type=_positive(float), metavar="METRES",
+                        help="sonar altitude above the seabed")
+    render.add_argument("--pings", type=_positive(int), metavar="N", help="number of pings")
+    render.add_argument("--side", choices=sorted(_SIDE_CHOICES), help="sides to image")
+    render.add_argument("--renderer", choices=("gl", "reference"), default="gl",
+                        help="gl: OpenGL rasteriser (default); reference: slow numpy oracle")
+    render.add_argument("--gl", choices=("egl", "osmesa"), default=None,
+                        help="headless GL backend (default: $SONAR_RASTER_GL, else EGL then "
+                        "OSMesa)")
+    render.add_argument("--oversample", type=_positive(float), default=None,
+                        help="look-angle samples per range bin (GL renderer, default 4)")
+    render.add_argument("--bits", type=int, choices=(8, 16), default=8, help="PNG bit depth")
+    render.add_argument("--dynamic-range", type=_positive(float), default=60.0, metavar="DB",
+                        help="PNG display range in dB below the reference level (default 60)")
+    render.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
+
+    sub.add_parser("scenes", help="list the bundled scenes")
+    sub.add_parser("doctor", help="show which GL backends start and the package versions")
+    return parser
+
+
+def _resolve_scene(name: str) -> Path:
+    path = Path(name)
+    if path.exists() or path.suffix:
+        return path
+    from .bundled import bundled_scene
+
+    return bundled_scene(name)
+
+
+def _check_outputs(outputs: list[str]) -> list[Path]:
+    paths = [Path(o) for o in outputs]
+    for p in paths:
+        if p.suffix.lower() not in _OUTPUT_SUFFIXES:
+            raise SonarRasterError(f"output {p}: unknown extension; use .png or .exr")
+        if not p.parent.is_dir():
+            raise SonarRasterError(f"cannot write {p}: directory {p.parent} does not exist; "
+                                   "create it first")
+    return paths
+
+
+def _render(args: argparse.Namespace) -> int:
+    outputs = _check_outputs(args.output)
+    from .description import Overrides, load_scene_file
+
+    overrides = Overrides(max_range=args.max_range, range_bin=args.range_bin,
+                          altitude=args.altitude, pings=args.pings,
+                          sides=_SIDE_CHOICES[args.side] if args.side else None)
+    setup = load_scene_file(_resolve_scene(args.scene), overrides)
+    if args.renderer == "reference":
+        from .reference import render_reference
+
+        image = render_reference(setup.scene, setup.sonar, setup.trajectory)
+    else:
+        from .raster import RasterSettings, render_raster
+
+        settings = RasterSettings(oversample=args.oversample or RasterSettings.oversample)
+        image = render_raster(setup.scene, setup.sonar, setup.trajectory, backend=args.gl,
+                              settings=settings, progress=not args.quiet)
+    image.metadata.update({"scene": setup.source, "altitude_m": setup.altitude,
+                           "pings": setup.trajectory.n_pings})
+    from .io import write_image
+
+    written = []
+    for path in outputs:
+        written += write_image(image, path, bit_depth=args.bits,
+                               dynamic_range_db=args.dynamic_range)
+    if not args.quiet:
+        pings, bins = image.shape
+        print(f"rendered {setup.source}: {setup.scene.n_triangles} triangles, {pings} pings x "
+              f"{bins} bins per side ({', '.join(image.sides)})")
+        for path in dict.fromkeys(written):
+            print(f"wrote {path}")
+    return 0
+
+
+def _scenes() -> int:
+    from .bundled import list_bundled
+
+    for name, description in list_bundled():
+        print(f"{name:24s} {description}")
+    return 0
+
+
+def _doctor() -> int:
+    from importlib import metadata
+
+    from .glcontext import BACKENDS, ENV_VAR, probe
+
+    import os
+
+    print(f"{ENV_VAR}={os.environ.get(ENV_VAR, '(unset)')}")
+    ok = False
+    for backend in BACKENDS:
+        info = probe(backend)
+        if info["ok"] == "yes":
+            ok = True
+            print(f"{backend:7s} ok   {info['renderer']} | OpenGL {info['version']} | "
+                  f"max texture {info['max_texture_size']}")
+        else:
+            print(f"{backend:7s} FAIL {info['error']}")
+    print(f"python  {sys.version.split()[0]}")
+    for pkg in ("sonar_raster", "moderngl", "glcontext", "numpy", "scipy", "trimesh",
+                "OpenImageIO", "scikit-image", "rasterio", "embreex"):
+        try:
+            version = metadata.version(pkg)
+        except metadata.PackageNotFoundError:
+            version = "not installed"
+        print(f"{pkg:13s} {version}")
+    return 0 if ok else 1
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; returns the exit status."""
+    args = _parser().parse_args(argv)
+    logging.basicConfig(level=logging.WARNING, format="sonar-raster: %(message)s")
+    try:
+        if args.command == "render":
+            return _render(args)
+        if args.command == "scenes":
+            return _scenes()
+        return _doctor()
+    except SonarRasterError as exc:
+        print(f"sonar-raster: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("sonar-raster: interrupted; nothing was written", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,318 @@
+"""Scene description files (TOML): seabed, objects with poses, sonar and trajectory.
+
+A description is turned into plain data: a :class:`Scene`, a :class:`Sonar` and a
+:class:`Trajectory`. A bare model file (glTF, OBJ, PLY, STL, VRML) gets a default flat sandy
+seabed and a track that passes it in the middle of the starboard swath. The format is
+documented in the README ("Scene description files").
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import SonarRasterError
+from .scene import MeshPart, Scene, build_scene
+from .seabed import Heightfield, make_seabed
+from .sonar import SIDES, BeamPattern, Sonar
+from .trajectory import Trajectory
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+MODEL_SUFFIXES = (".wrl", ".vrml", ".gltf", ".glb", ".obj", ".ply", ".stl", ".off")
+_Y_UP_SUFFIXES = (".gltf", ".glb")   # glTF is y-up by specification
+DEFAULT_SEABED_REFLECTIVITY = 0.3    # sand, relative to a rigid object's ~0.9
+
+
+@dataclass(frozen=True)
+class SceneSetup:
+    """Everything a render needs, as loaded from a description or a bare model."""
+
+    scene: Scene
+    sonar: Sonar
+    trajectory: Trajectory
+    source: str
+    altitude: float
+
+
+@dataclass(frozen=True)
+class Overrides:
+    """Command-line overrides; None keeps the description's value."""
+
+    max_range: float | None = None
+    range_bin: float | None = None
+    altitude: float | None = None
+    pings: int | None = None
+    sides: tuple[str, ...] | None = None
+
+
+def load_scene_file(path: str | Path, overrides: Overrides | None = None) -> SceneSetup:
+    """Load a ``.toml`` scene description or a bare model file.
+
+    Parameters
+    ----------
+    path : str or Path
+        The description or model file.
+    overrides : Overrides, optional
+        Values that replace the file's sonar and trajectory settings.
+
+    Raises
+    ------
+    SonarRasterError
+        On a missing file, an unknown extension, or any invalid entry (the message names it).
+    """
+    path = Path(path)
+    ov = overrides or Overrides()
+    if not path.is_file():
+        raise SonarRasterError(f"scene file {path} does not exist")
+    suffix = path.suffix.lower()
+    if suffix == ".toml":
+        return _from_description(path, ov)
+    if suffix in MODEL_SUFFIXES:
+        return _from_model(path, ov)
+    raise SonarRasterError(
+        f"{path}: unknown scene extension {suffix or '(none)'!r}; use .toml or a model file "
+        f"({', '.join(MODEL_SUFFIXES)})"
+    )
+
+
+# -- tables ------------------------------------------------------------------------------------
+def _table(data: dict, key: str, where: str) -> dict:
+    value = data.get(key, {})
+    if not isinstance(value, dict):
+        raise SonarRasterError(f"{where}: [{key}] must be a table")
+    return dict(value)
+
+
+def _take(table: dict, key: str, default: Any, kind: type | tuple, where: str) -> Any:
+    value = table.pop(key, default)
+    if value is not None and not isinstance(value, kind):
+        raise SonarRasterError(f"{where}: '{key}' has the wrong type ({type(value).__name__})")
+    return value
+
+
+def _no_leftovers(table: dict, where: str) -> None:
+    if table:
+        raise SonarRasterError(f"{where}: unknown key(s) {', '.join(sorted(table))}")
+
+
+def _vector(value: Any, n: tuple[int, ...], key: str, where: str) -> np.ndarray:
+    arr = np.asarray(value, dtype=np.float64) if isinstance(value, (list, tuple)) else None
+    if arr is None or arr.ndim != 1 or len(arr) not in n or not np.all(np.isfinite(arr)):
+        sizes = " or ".join(str(k) for k in n)
+        raise SonarRasterError(f"{where}: '{key}' must be a list of {sizes} finite numbers")
+    return arr
+
+
+# -- sonar -------------------------------------------------------------------------------------
+def _beam(spec: Any, frequency: float, base: Path, where: str) -> BeamPattern:
+    if spec is None:
+        return BeamPattern.uniform()
+    if not isinstance(spec, dict):
+        raise SonarRasterError(f"{where}: 'beam' must be a table like {{ kind = \"gaussian\" }}")
+    spec = dict(spec)
+    kind = spec.pop("kind", "uniform")
+    number = (int, float)
+    if kind == "uniform":
+        beam = BeamPattern.uniform()
+    elif kind == "gaussian":
+        beam = BeamPattern.gaussian(float(_take(spec, "beamwidth_deg", 40.0, number, where)))
+    elif kind == "sinc":
+        beam = BeamPattern.sinc(float(_take(spec, "aperture_m", 0.02, number, where)), frequency)
+    elif kind == "table":
+        beam = BeamPattern.from_csv(str(base / _take(spec, "path", "", str, where)))
+    else:
+        raise SonarRasterError(f"{where}: unknown beam kind {kind!r}; use uniform, gaussian, sinc "
+                               "or table")
+    _no_leftovers(spec, f"{where} beam")
+    return beam
+
+
+def _sonar(table: dict, base: Path, ov: Overrides, where: str) -> Sonar:
+    number = (int, float)
+    frequency = float(_take(table, "frequency_hz", 400e3, number, where))
+    sides = _take(table, "sides", list(SIDES), list, where)
+    sonar = Sonar(
+        frequency_hz=frequency,
+        max_range=float(_take(table, "max_range", 50.0, number, where)),
+        range_bin=float(_take(table, "range_bin", 0.05, number, where)),
+        tilt=math.radians(float(_take(table, "tilt_deg", 20.0, number, where))),
+        beam=_beam(table.pop("beam", None), frequency, base, where),
+        sides=tuple(sides),
+        sound_speed=float(_take(table, "sound_speed", 1500.0, number, where)),
+    )
+    _no_leftovers(table, f"{where} [sonar]")
+    changes: dict[str, Any] = {}
+    if ov.max_range is not None:
+        changes["max_range"] = ov.max_range
+    if ov.range_bin is not None:
+        changes["range_bin"] = ov.range_bin
+    if ov.sides is not None:
+        changes["sides"] = ov.sides
+    return replace(sonar, **changes) if changes else sonar
+
+
+# -- seabed and objects ------------------------------------------------------------------------
+def _seabed(table: dict, base: Path, where: str) -> tuple[Heightfield, MeshPart] | None:
+    if not table:
+        return None
+    kind = table.pop("kind", "flat")
+    reflectivity = table.pop("reflectivity", DEFAULT_SEABED_REFLECTIVITY)
+    if "path" in table:
+        table["path"] = str(base / str(table["path"]))
+    field = make_seabed(str(kind), **table)
+    return field, field.mesh(reflectivity=float(reflectivity), name="seabed")
+
+
+def _rotation(angles_deg: np.ndarray) -> np.ndarray:
+    """Rotation matrix for rotations about x, then y, then z (degrees)."""
+    ax, ay, az = np.radians(angles_deg)
+    rx = np.array([[1, 0, 0], [0, math.cos(ax), -math.sin(ax)], [0, math.sin(ax), math.cos(ax)]])
+    ry = np.array([[math.cos(ay), 0, math.sin(ay)], [0, 1, 0], [-math.sin(ay), 0, math.cos(ay)]])
+    rz = np.array([[math.cos(az), -math.sin(az), 0], [math.sin(az), math.cos(az), 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+def _primitive(spec: dict, where: str) -> list[MeshPart]:
+    import trimesh
+
+    kind = spec.pop("primitive")
+    number = (int, float)
+    if kind == "box":
+        size = _vector(_take(spec, "size", [1.0, 1.0, 1.0], list, where), (3,), "size", where)
+        mesh = trimesh.creation.box(extents=size)
+    elif kind == "cylinder":
+        radius = float(_take(spec, "radius", 0.5, number, where))
+        length = float(_take(spec, "length", 2.0, number, where))
+        mesh = trimesh.creation.cylinder(radius=radius, height=length, sections=64)
+    elif kind == "sphere":
+        mesh = trimesh.creation.icosphere(subdivisions=4,
+                                          radius=float(_take(spec, "radius", 0.5, number, where)))
+    else:
+        raise SonarRasterError(f"{where}: unknown primitive {kind!r}; use box, cylinder or sphere")
+    return [MeshPart(np.asarray(mesh.vertices), np.asarray(mesh.faces), 0.9, str(kind))]
+
+
+def _object(spec: dict, base: Path, seabed: Heightfield | None, k: int) -> list[MeshPart]:
+    where = f"object {k + 1}"
+    spec = dict(spec)
+    if "primitive" in spec:
+        parts = _primitive(spec, where)
+        up = "z"
+    elif "file" in spec:
+        from .meshio import load_model
+
+        model = base / str(spec.pop("file"))
+        parts = load_model(model)
+        up = "y" if model.suffix.lower() in _Y_UP_SUFFIXES else "z"
+    else:
+        raise SonarRasterError(f"{where}: give 'file' (a model) or 'primitive' (box, cylinder, "
+                               "sphere)")
+    number = (int, float)
+    up = _take(spec, "up", up, str, where)
+    if up not in ("y", "z"):
+        raise SonarRasterError(f"{where}: 'up' must be \"y\" or \"z\"")
+    position = _vector(_take(spec, "position", [0.0, 0.0], list, where), (2, 3), "position", where)
+    rotation = _rotation(_vector(_take(spec, "rotation_deg", [0.0, 0.0, 0.0], list, where), (3,),
+                                 "rotation_deg", where))
+    if up == "y":
+        rotation = rotation @ _rotation(np.array([90.0, 0.0, 0.0]))
+    scale = float(_take(spec, "scale", 1.0, number, where))
+    sink = float(_take(spec, "sink", 0.0, number, where))
+    reflectivity = _take(spec, "reflectivity", None, number, where)
+    name = _take(spec, "name", None, str, where)
+    _no_leftovers(spec, where)
+    if not scale > 0:
+        raise SonarRasterError(f"{where}: 'scale' must be > 0")
+    moved = [(p.vertices @ rotation.T) * scale for p in parts]
+    lowest = min(float(v[:, 2].min()) for v in moved)
+    if len(position) == 2:  # stand it on the seabed (or on z = 0 without one)
+        ground = float(seabed.height_at(position[0], position[1])) if seabed is not None else 0.0
+        offset = np.array([position[0], position[1], ground - lowest - sink])
+    else:
+        offset = position
+    out = []
+    for j, (part, v) in enumerate(zip(parts, moved)):
+        label = name if name and len(parts) == 1 else (f"{name}/{part.name}" if name else part.name)
+        out.append(MeshPart(v + offset, part.faces,
+                            part.reflectivity if reflectivity is None else float(reflectivity),
+                            label or f"object{k}_{j}"))
+    return out
+
+
+# -- trajectory --------------------------------------------------------------------------------
+def _trajectory(table: dict, ground_z: float, base: Path, ov: Overrides,
+                where: str) -> tuple[Trajectory, float]:
+    number = (int, float)
+    if "csv" in table:
+        path = base / str(table.pop("csv"))
+        _no_leftovers(table, f"{where} [trajectory]")
+        traj = Trajectory.from_csv(str(path))
+        return traj, float(traj.positions[0, 2] - ground_z)
+    start = _vector(_take(table, "start", [0.0, 0.0], list, where), (2,), "start", where)
+    altitude = float(_take(table, "altitude", 10.0, number, where))
+    heading = float(_take(table, "heading_deg", 0.0, number, where))
+    spacing = float(_take(table, "spacing", 0.1, number, where))
+    pings = _take(table, "pings", 200, int, where)
+    _no_leftovers(table, f"{where} [trajectory]")
+    if ov.altitude is not None:
+        altitude = ov.altitude
+    if ov.pings is not None:
+        pings = ov.pings
+    if not (math.isfinite(altitude) and altitude > 0):
+        raise SonarRasterError(f"altitude must be > 0 metres, got {altitude}")
+    z = ground_z + altitude
+    return Trajectory.straight((start[0], start[1], z), heading, spacing, pings), altitude
+
+
+def _from_description(path: Path, ov: Overrides) -> SceneSetup:
+    where = path.name
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise SonarRasterError(f"{where}: not valid TOML ({exc})") from None
+    base = path.parent
+    sonar = _sonar(_table(data, "sonar", where), base, ov, where)
+    sea = _seabed(_table(data, "seabed", where), base, where)
+    objects = data.get("objects", [])
+    if not isinstance(objects, list) or not all(isinstance(o, dict) for o in objects):
+        raise SonarRasterError(f"{where}: objects must be [[objects]] tables")
+    parts = [sea[1]] if sea else []
+    for k, spec in enumerate(objects):
+        parts.extend(_object(spec, base, sea[0] if sea else None, k))
+    unknown = set(data) - {"name", "description", "sonar", "seabed", "objects", "trajectory"}
+    if unknown:
+        raise SonarRasterError(f"{where}: unknown top-level key(s) {', '.join(sorted(unknown))}")
+    scene = build_scene(parts)
+    ground = scene.ground_z if sea else 0.0
+    traj, altitude = _trajectory(_table(data, "trajectory", where), ground, base, ov, where)
+    return SceneSetup(scene, sonar, traj, str(path), altitude)
+
+
+def _from_model(path: Path, ov: Overrides) -> SceneSetup:
+    """A bare model on a flat sandy seabed, mid-swath to starboard of a track passing it."""
+    sonar = _sonar({}, path.parent, ov, path.name)
+    altitude = ov.altitude if ov.altitude is not None else 10.0
+    if not (math.isfinite(altitude) and altitude > 0):
+        raise SonarRasterError(f"altitude must be > 0 metres, got {altitude}")
+    r_mid = 0.5 * sonar.max_range
+    ground_range = math.sqrt(max(r_mid**2 - altitude**2, (0.25 * sonar.max_range) ** 2))
+    objects = _object({"file": path.name, "position": [ground_range, 0.0]}, path.parent, None, 0)
+    size = max(float(np.ptp(np.concatenate([p.vertices for p in objects]), axis=0).max()), 0.1)
+    length = max(20.0, 6.0 * size)
+    pings = ov.pings if ov.pings is not None else 200
+    seabed = make_seabed("flat", size=(2.2 * sonar.max_range, length + 20.0),
+                         center=(0.0, 0.0), depth=0.0)
+    parts = [seabed.mesh(DEFAULT_SEABED_REFLECTIVITY, "seabed"), *objects]
+    scene = build_scene(parts)
+    traj = Trajectory.straight((0.0, -0.5 * length, altitude), 0.0, length / max(pings - 1, 1),
+                               pings)
+    return SceneSetup(scene, sonar, traj, str(path), altitude)
