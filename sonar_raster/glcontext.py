@@ -76,6 +76,13 @@ class _OSMesaLoader:
             raise RuntimeError("OSMesaMakeCurrent failed")
         self._lib, self._handle = lib, handle
 
+    def __enter__(self) -> None:
+        """Make this context current (moderngl calls it from ``with ctx:``)."""
+        self._lib.OSMesaMakeCurrent(self._handle, self._buffer, _GL_UNSIGNED_BYTE, 2, 2)
+
+    def __exit__(self, *exc: object) -> None:
+        return None
+
     def load_opengl_function(self, name: str) -> int:
         return self._lib.OSMesaGetProcAddress(name.encode()) or 0
 

@@ -114,11 +114,12 @@ class RasterRenderer:
         """Release every GL object and the context."""
         if self.ctx is None:
             return
-        self._release_geometry()
-        self._release_targets()
-        for prog in self._programs.values():
-            prog.release()
-        self._programs.clear()
+        with self.ctx:
+            self._release_geometry()
+            self._release_targets()
+            for prog in self._programs.values():
+                prog.release()
+            self._programs.clear()
         release_context(self.ctx)
         self.ctx = None
 
@@ -138,9 +139,10 @@ class RasterRenderer:
         }
 
     # -- programs ---------------------------------------------------------------------------
-    def _program(self, key: str) -> Any:
+    def _program(self, kind: str) -> Any:
+        key = kind if kind == "samples" else f"{kind}:{self.settings.split}"
         if key not in self._programs:
-            if key == "samples":
+            if kind == "samples":
                 d = {"SCATTERING": 1}
                 self._programs[key] = self.ctx.program(
                     vertex_shader=specialise("ping_samples.glsl", "VERTEX_SHADER", d),
@@ -198,13 +200,13 @@ class RasterRenderer:
 
     def _framebuffer(self, width: int, height: int) -> tuple[Any, Any]:
         """The (framebuffer, sample texture) of this size, reused across draws."""
-        if self._targets and self._targets["color"].size != (width, height):
-            self._release_targets()
-        if not self._targets:
+        if not self._targets or self._targets["color"].size != (width, height):
             color = self.ctx.texture((width, height), 4, dtype="f4")
             depth = self.ctx.depth_texture((width, height))
-            self._targets = {"fbo": self.ctx.framebuffer([color], depth), "color": color,
-                             "depth": depth}
+            fbo = self.ctx.framebuffer([color], depth)
+            fbo.use()  # bind the new one first: releasing a bound framebuffer upsets moderngl
+            self._release_targets()
+            self._targets = {"fbo": fbo, "color": color, "depth": depth}
         return self._targets["fbo"], self._targets["color"]
 
     # -- planning ---------------------------------------------------------------------------
@@ -242,6 +244,14 @@ class RasterRenderer:
     # -- rendering --------------------------------------------------------------------------
     def render(self, scene: Scene, sonar: Sonar, trajectory: Trajectory,
                progress: bool = False) -> SonarImage:
+        """Render one image per side (see :meth:`_render`); makes this context current first."""
+        if self.ctx is None:
+            raise SonarRasterError("this renderer was released; make a new one")
+        with self.ctx:
+            return self._render(scene, sonar, trajectory, progress)
+
+    def _render(self, scene: Scene, sonar: Sonar, trajectory: Trajectory,
+                progress: bool) -> SonarImage:
         """Render one image per side.
 
         Parameters
@@ -257,8 +267,6 @@ class RasterRenderer:
         SonarImage
             float32 (pings × bins) per side; see :class:`SonarImage` for units.
         """
-        if self.ctx is None:
-            raise SonarRasterError("this renderer was released; make a new one")
         origin = trajectory.positions[0].copy()
         max_edge = self.settings.max_edge or 20.0 * sonar.range_bin
         self._upload(scene, origin, max_edge)

@@ -401,7 +401,7 @@ def _clip_rows(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Intersect [j_min, j_max] with ``lo_c <= base[:, c] + slope[:, c] j <= hi_c`` for each c."""
     lo, hi = j_min.copy(), j_max.copy()
-    span = np.maximum(j_max - j_min, 0.0) + 2.0
+    span = np.maximum(j_max, 0.0) + 2.0  # j runs from 0 (base) to at most j_max
     for c in range(3):
         b_lo, b_hi = bounds[c]
         s = slope[:, c]

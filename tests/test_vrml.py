@@ -151,7 +151,7 @@ def test_default_box_is_two_metres():
 def test_sphere_area_close_to_four_pi_r_squared():
     (part,) = parse(shape("Sphere { radius 2 }"))
     np.testing.assert_allclose(np.linalg.norm(part.vertices, axis=1), 2.0)
-    assert normals_areas(part)[1].sum() == pytest.approx(4 * np.pi * 4, rel=0.02)
+    assert normals_areas(part)[1].sum() == pytest.approx(4 * np.pi * 4, rel=0.01)
     assert_outward(part, [0, 0, 0])
 
 
@@ -173,6 +173,8 @@ def test_cone_apex_base_and_orientation():
     assert len(part.faces) == 2 * SEGMENTS
     np.testing.assert_allclose(bounds([part]), [[-2, -2, -2], [2, 2, 2]], atol=1e-12)
     assert_outward(part, [0, -1, 0])
+    area = np.pi * 2 * (2 + np.hypot(2, 4))  # base + lateral surface
+    assert normals_areas(part)[1].sum() == pytest.approx(area, rel=0.01)
 
 
 def test_elevation_grid_faces_up():
@@ -214,6 +216,15 @@ def test_comments_commas_strings_and_hex_are_tokens_as_in_the_spec():
     )
     (part,) = parse(text)
     np.testing.assert_array_equal(part.faces, [[0, 1, 2]])
+
+
+def test_bom_crlf_shared_geometry_and_empty_proto():
+    text = (
+        "\ufeff#VRML V2.0 utf8 exported by something\r\n"
+        "DEF a Shape {\r\n geometry DEF g Box { } }\r\n"
+        "Shape { geometry USE g }\r\nPROTO Empty [] { }\r\nGroup { children [ Empty { } ] }"
+    )
+    assert [p.name for p in parse_vrml(text)] == ["a", "g"]
 
 
 def test_unknown_nodes_and_unsupported_geometry_are_skipped():

@@ -1,0 +1,66 @@
+"""Shared fixtures: one GL renderer per backend for the session, checked for GL errors."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sonar_raster.scene import MeshPart, build_scene
+
+ROOT = Path(__file__).resolve().parents[1]
+SHARED_DATA = ROOT.parent / "shared" / "data"
+
+
+def _renderer(backend: str):
+    from sonar_raster.raster import RasterRenderer
+
+    return RasterRenderer(backend)
+
+
+@pytest.fixture(scope="session")
+def gl_renderer():
+    """An EGL renderer (the default backend) shared by the session."""
+    renderer = _renderer("egl")
+    yield renderer
+    renderer.release()
+
+
+@pytest.fixture(scope="session")
+def osmesa_renderer():
+    renderer = _renderer("osmesa")
+    yield renderer
+    renderer.release()
+
+
+@pytest.fixture()
+def gl(gl_renderer):
+    """The session renderer, asserting no GL error before and after the test."""
+    with gl_renderer.ctx:
+        assert gl_renderer.ctx.error == "GL_NO_ERROR"
+    yield gl_renderer
+    with gl_renderer.ctx:
+        assert gl_renderer.ctx.error == "GL_NO_ERROR"
+
+
+def plane(size: float, z: float = 0.0, reflectivity: float = 0.5, center=(0.0, 0.0)) -> MeshPart:
+    """A square seabed of two triangles, counter-clockwise from above."""
+    cx, cy = center
+    h = size / 2
+    v = np.array([[cx - h, cy - h, z], [cx + h, cy - h, z], [cx + h, cy + h, z], [cx - h, cy + h, z]])
+    return MeshPart(v, np.array([[0, 1, 2], [0, 2, 3]]), reflectivity, "seabed", is_seabed=True)
+
+
+def box(center, size, reflectivity: float = 0.9, name: str = "box") -> MeshPart:
+    """An axis-aligned closed box with outward faces."""
+    import trimesh
+
+    mesh = trimesh.creation.box(extents=size)
+    return MeshPart(np.asarray(mesh.vertices) + np.asarray(center), np.asarray(mesh.faces),
+                    reflectivity, name)
+
+
+@pytest.fixture()
+def flat_scene():
+    return build_scene([plane(200.0)])

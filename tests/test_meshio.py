@@ -1,0 +1,185 @@
+"""Model loading: format dispatch, scene-graph transforms, reflectivity sources, errors."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sonar_raster.errors import SonarRasterError
+from sonar_raster.meshio import load_model
+
+trimesh = pytest.importorskip("trimesh")
+T = trimesh.transformations
+
+DATA = Path(__file__).parents[1] / ".." / "shared" / "data" / "vrml"
+
+
+def box(extents=(1.0, 2.0, 3.0), colour=None):
+    mesh = trimesh.creation.box(extents)
+    if colour is not None:
+        material = trimesh.visual.material.PBRMaterial(baseColorFactor=colour)
+        mesh.visual = trimesh.visual.TextureVisuals(material=material)
+    return mesh
+
+
+def moved_scene(colour=None, metadata=None) -> trimesh.Scene:
+    """Box 1 x 2 x 3 m turned 90 degrees about z, then moved to (10, 0, 0)."""
+    matrix = T.translation_matrix([10, 0, 0]) @ T.rotation_matrix(np.pi / 2, [0, 0, 1])
+    scene = trimesh.Scene()
+    scene.add_geometry(
+        box(colour=colour),
+        node_name="hull",
+        geom_name="hull_mesh",
+        transform=matrix,
+        metadata=metadata,
+    )
+    return scene
+
+
+def bounds(part) -> np.ndarray:
+    return np.stack([part.vertices.min(axis=0), part.vertices.max(axis=0)])
+
+
+def assert_outward(part, centre) -> None:
+    tri = part.vertices[part.faces]
+    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    assert np.all(np.einsum("ij,ij->i", normals, tri.mean(axis=1) - centre) > 0)
+
+
+MOVED_BOUNDS = [[9, -0.5, -1.5], [11, 0.5, 1.5]]
+
+
+@pytest.mark.parametrize("suffix", [".glb", ".gltf", ".obj", ".ply", ".stl", ".off"])
+def test_world_bounds_follow_the_node_transform(tmp_path, suffix):
+    path = tmp_path / f"model{suffix}"
+    scene = moved_scene()
+    (scene.to_mesh() if suffix == ".off" else scene).export(path)  # OFF holds one mesh
+    parts = load_model(path)
+    assert sum(len(p.faces) for p in parts) == 12
+    vertices = np.concatenate([p.vertices for p in parts])
+    np.testing.assert_allclose(
+        [vertices.min(axis=0), vertices.max(axis=0)], MOVED_BOUNDS, atol=1e-6
+    )
+    assert all(p.vertices.dtype == np.float64 and p.faces.dtype == np.int64 for p in parts)
+    assert_outward(parts[0], [10, 0, 0])
+
+
+def test_gltf_nodes_keep_names_and_compose_parent_transforms(tmp_path):
+    scene = trimesh.Scene()
+    scene.add_geometry(
+        box((1, 1, 1)),
+        node_name="base",
+        geom_name="cube",
+        transform=T.translation_matrix([0, 0, 5]),
+    )
+    scene.add_geometry(
+        box((1, 1, 1)),
+        node_name="arm",
+        geom_name="cube2",
+        parent_node_name="base",
+        transform=T.scale_matrix(2),
+    )
+    scene.add_geometry(trimesh.PointCloud(np.zeros((3, 3))), node_name="dots")
+    path = tmp_path / "robot.glb"
+    scene.export(path)
+    parts = {p.name: p for p in load_model(path)}
+    assert sorted(parts) == ["arm", "base"]
+    np.testing.assert_allclose(bounds(parts["base"]), [[-0.5, -0.5, 4.5], [0.5, 0.5, 5.5]])
+    np.testing.assert_allclose(bounds(parts["arm"]), [[-1, -1, 4], [1, 1, 6]])
+
+
+def test_mirroring_node_keeps_faces_outward(tmp_path):
+    scene = trimesh.Scene()
+    scene.add_geometry(box(), node_name="m", transform=np.diag([-1.0, 1.0, 1.0, 1.0]))
+    path = tmp_path / "mirror.glb"
+    scene.export(path)
+    (part,) = load_model(path)
+    assert_outward(part, [0, 0, 0])
+
+
+def test_gltf_material_base_colour_sets_reflectivity(tmp_path):
+    path = tmp_path / "painted.glb"
+    moved_scene(colour=[0.2, 0.4, 0.6, 1.0]).export(path)
+    (part,) = load_model(path)
+    assert part.reflectivity == pytest.approx(0.4, abs=1e-3)
+    path = tmp_path / "plain.glb"
+    moved_scene().export(path)
+    assert load_model(path)[0].reflectivity == 0.5
+
+
+def test_extras_reflectivity_wins_node_before_mesh(tmp_path):
+    path = tmp_path / "tagged.gltf"
+    moved_scene(colour=[1.0, 1.0, 1.0, 1.0]).export(path)
+    assert load_model(path)[0].reflectivity == pytest.approx(1.0)
+    document = json.loads(path.read_text())
+    document["meshes"][0]["extras"] = {"reflectivity": 0.3}
+    path.write_text(json.dumps(document))
+    assert load_model(path)[0].reflectivity == pytest.approx(0.3)
+    document["nodes"][0]["extras"] = {"reflectivity": 0.9}
+    path.write_text(json.dumps(document))
+    assert load_model(path)[0].reflectivity == pytest.approx(0.9)
+    document["nodes"][0]["extras"] = {"reflectivity": "shiny"}
+    path.write_text(json.dumps(document))
+    with pytest.raises(
+        SonarRasterError, match=r"'tagged\.gltf' node 'hull' has extras reflectivity"
+    ):
+        load_model(path)
+
+
+def test_vrml_goes_through_the_vrml_reader(tmp_path):
+    path = tmp_path / "cube.WRL"
+    path.write_text("#VRML V2.0 utf8\nDEF cube Shape { geometry Box { size 1 1 1 } }")
+    (part,) = load_model(path)
+    assert part.name == "cube" and len(part.faces) == 12
+    tire = DATA / "tire.wrl"
+    if tire.is_file():
+        assert len(load_model(tire)[0].faces) == 212
+
+
+@pytest.mark.parametrize(
+    ("name", "content", "message"),
+    [
+        ("model.xyz", b"1 2 3", r"'model\.xyz' is not a known model format; use one of \.wrl"),
+        ("bad.glb", b"garbage", r"cannot read 'bad\.glb' as GLB \(ValueError: "),
+        (
+            "bad.gltf",
+            b'{"asset": {"version": "2.0"}, "nodes": {"a": 1}}',
+            r"cannot read 'bad\.gltf'",
+        ),
+        ("bad.ply", b"ply\nformat ascii 1.0\nelement vertex 3\n", r"cannot read 'bad\.ply' as PLY"),
+        ("binary.stl", bytes(range(256)) * 3, r"'binary\.stl'"),
+        ("empty.obj", b"# nothing here\n", r"'empty\.obj' holds no triangles"),
+        (
+            "points.ply",
+            b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
+            b"property float y\nproperty float z\nend_header\n0 0 0\n",
+            r"'points\.ply' holds no",
+        ),
+        ("broken.wrl", b"#VRML V2.0 utf8\nGroup {\n", r"broken\.wrl:2: expected a field name"),
+    ],
+)
+def test_bad_files_raise_one_line_errors(tmp_path, name, content, message):
+    path = tmp_path / name
+    path.write_bytes(content)
+    with pytest.raises(SonarRasterError, match=message) as info:
+        load_model(path)
+    assert "\n" not in str(info.value)
+
+
+def test_missing_file_and_folder_raise(tmp_path):
+    with pytest.raises(SonarRasterError, match=r"model file '.*ghost\.glb' not found"):
+        load_model(tmp_path / "ghost.glb")
+    (tmp_path / "dir.obj").mkdir()
+    with pytest.raises(SonarRasterError, match=r"is a folder, not a file"):
+        load_model(tmp_path / "dir.obj")
+
+
+def test_importing_meshio_does_not_import_trimesh():
+    code = "import sys, sonar_raster.meshio; print('trimesh' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
