@@ -28,7 +28,7 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 MODEL_SUFFIXES = (".wrl", ".vrml", ".gltf", ".glb", ".obj", ".ply", ".stl", ".off")
-_Y_UP_SUFFIXES = (".gltf", ".glb")   # glTF is y-up by specification
+_Y_UP_SUFFIXES = (".gltf", ".glb", ".wrl", ".vrml")   # y-up by their specifications
 DEFAULT_SEABED_REFLECTIVITY = 0.3    # sand, relative to a rigid object's ~0.9
 
 

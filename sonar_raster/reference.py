@@ -69,6 +69,7 @@ class _Frame:
     first: int
     count: int
     roll: np.ndarray
+    patch_size: float
 
     @property
     def t_bounds(self) -> tuple[float, float]:
@@ -117,11 +118,15 @@ class _Patches:
         Centroid (along, starboard, up) relative to the segment origin, metres.
     normal : ndarray, shape (p, 3)
         Parent face's unit normal in (along, starboard, up) components.
+    edges : ndarray, shape (p, 3, 2)
+        The patch's two edge vectors (segment coordinates), oriented so that its corners are
+        ``coords + edges @ (-1/3, -1/3)``, ``(2/3, -1/3)`` and ``(-1/3, 2/3)``.
     """
 
     face: np.ndarray
     coords: np.ndarray
     normal: np.ndarray
+    edges: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -138,12 +143,15 @@ class _Runs:
         Centroid of the run's first patch in segment coordinates, metres.
     step : ndarray, shape (q, 3)
         Centroid offset from one patch of the run to the next, metres.
+    sign : ndarray, shape (q,)
+        +1 for upright pieces, -1 for inverted ones (their edges point the other way).
     """
 
     tri: np.ndarray
     length: np.ndarray
     start: np.ndarray
     step: np.ndarray
+    sign: np.ndarray
 
     def chunks(self, size: int) -> Iterator[_Runs]:
         """Split into consecutive groups of whole runs with about ``size`` patches each."""
@@ -154,12 +162,10 @@ class _Runs:
         edges = [0, *cuts.tolist(), len(ends)]
         for lo, hi in zip(edges[:-1], edges[1:], strict=True):
             if hi > lo:
-                yield _Runs(
-                    self.tri[lo:hi], self.length[lo:hi], self.start[lo:hi], self.step[lo:hi]
-                )
+                yield _Runs(*(getattr(self, f)[lo:hi] for f in _RUN_FIELDS))
 
 
-_RUN_FIELDS = ("tri", "length", "start", "step")
+_RUN_FIELDS = ("tri", "length", "start", "step", "sign")
 
 
 @dataclass
@@ -217,7 +223,7 @@ def render_reference(
     acc = {side: np.zeros((trajectory.n_pings, sonar.n_bins)) for side in sonar.sides}
     stats = _Stats()
     for segment in trajectory.segments(sonar.range_bin / 4.0):
-        frame = _frame(segment, trajectory, local)
+        frame = _frame(segment, trajectory, local, size)
         _render_segment(surface, caster, sonar, frame, acc, stats)
     elapsed = time.perf_counter() - start
     log.info(
@@ -258,7 +264,9 @@ def _surface(scene: Scene, local: np.ndarray, patch_size: float) -> _Surface:
     return _Surface(tri, normal, n_sub, weight)
 
 
-def _frame(segment: Segment, trajectory: Trajectory, local: np.ndarray) -> _Frame:
+def _frame(
+    segment: Segment, trajectory: Trajectory, local: np.ndarray, patch_size: float
+) -> _Frame:
     sl = slice(segment.first, segment.first + segment.count)
     return _Frame(
         origin=segment.origin - local,
@@ -270,6 +278,7 @@ def _frame(segment: Segment, trajectory: Trajectory, local: np.ndarray) -> _Fram
         first=segment.first,
         count=segment.count,
         roll=trajectory.roll[sl],
+        patch_size=patch_size,
     )
 
 
@@ -279,12 +288,15 @@ def _ray_caster(vertices: np.ndarray, faces: np.ndarray):
 
     mesh = trimesh.Trimesh(vertices=vertices, faces=faces, process=False, validate=False)
     try:
-        from trimesh.ray import ray_pyembree
+        # trimesh.ray wraps a failed embreex import instead of raising: test it directly
+        import embreex  # noqa: F401
     except ImportError:
         from trimesh.ray import ray_triangle
 
         log.info("embreex not available: using trimesh's slow ray_triangle intersector")
         return ray_triangle.RayMeshIntersector(mesh)
+    from trimesh.ray import ray_pyembree
+
     return ray_pyembree.RayMeshIntersector(mesh)
 
 
@@ -294,7 +306,8 @@ def _bounds(sonar: Sonar, frame: _Frame) -> np.ndarray:
     x_lo = -reach if "port" in sonar.sides else 0.0
     x_hi = reach if "starboard" in sonar.sides else 0.0
     t_lo, t_hi = frame.t_bounds
-    return np.array([[t_lo, t_hi], [x_lo, x_hi], [-reach, reach]])
+    margin = frame.patch_size  # a patch whose centroid is outside may still reach in
+    return np.array([[t_lo - margin, t_hi + margin], [x_lo, x_hi], [-reach, reach]])
 
 
 def _render_segment(
@@ -322,10 +335,12 @@ def _render_segment(
             run = np.repeat(np.arange(len(chunk.length)), chunk.length)
             step = np.arange(len(run)) - (np.cumsum(chunk.length) - chunk.length)[run]
             kept = lo + chunk.tri[run]
+            scale = chunk.sign[run] / surface.n_sub[ids[kept]]
             patches = _Patches(
                 face=ids[kept],
                 coords=chunk.start[run] + chunk.step[run] * step[:, None],
                 normal=normal[kept],
+                edges=proj[ids[kept]][:, :, 1:] * scale[:, None, None],
             )
             _accumulate(surface, caster, sonar, frame, patches, acc, stats)
 
@@ -391,6 +406,7 @@ def _row_runs(proj: np.ndarray, n_sub: np.ndarray, bounds: np.ndarray) -> _Runs:
                 length=(hi - lo + 1)[ok].astype(np.int64),
                 start=base[ok] + slope[ok] * lo[ok, None],
                 step=slope[ok],
+                sign=np.full(int(ok.sum()), sign),
             )
         )
     return _Runs(*(np.concatenate([getattr(r, f) for r in parts]) for f in _RUN_FIELDS))
@@ -426,14 +442,20 @@ def _accumulate(
     acc: dict[str, np.ndarray],
     stats: _Stats,
 ) -> None:
-    """Test one chunk of patches and add the visible ones to ``acc``."""
+    """Test one chunk of patches and add the visible ones to ``acc``.
+
+    A patch's area is shared among the pings whose slabs and the range bins whose rings it
+    overlaps (see :func:`_spread`), each direction on its own (a product of the two shares).
+    """
     t, x, v = patches.coords.T
-    ping, inside = _ping_index(t, frame)
+    corners = patches.coords[:, None, :] + np.einsum("pcj,kj->pkc", patches.edges, _CORNER_OFFSETS)
+    t_lo, t_hi = frame.t_bounds
+    inside = (corners[..., 0].max(axis=1) > t_lo) & (corners[..., 0].min(axis=1) < t_hi)
     starboard = x > 0
     on_side = np.where(starboard, "starboard" in sonar.sides, "port" in sonar.sides) & (x != 0)
     r = np.hypot(x, v)
-    rbin = np.floor(r / sonar.range_bin)
-    candidate = inside & on_side & (rbin < sonar.n_bins)
+    near = np.hypot(corners[..., 1], corners[..., 2]).min(axis=1)
+    candidate = inside & on_side & (near < sonar.n_bins * sonar.range_bin)
     stats.patches += int(np.count_nonzero(candidate))
     cos_num = -(x * patches.normal[:, 1] + v * patches.normal[:, 2])
     sel = np.flatnonzero(candidate & (cos_num > 0))
@@ -448,26 +470,77 @@ def _accumulate(
     face = patches.face[keep]
     weight = surface.patch_weight[face] * cos_num[keep] / r[keep]
     depression = np.arctan2(-v[keep], np.abs(x[keep]))
+    c = corners[keep]
+    bins, in_bin = _spread(np.hypot(c[..., 1], c[..., 2]), sonar.range_bin, 0.0)
+    slab = frame.spacing if frame.spacing > 0 else frame.width
+    pings, in_slab = _spread(c[..., 0], slab, -0.5 * slab)
+    valid = (pings >= 0) & (pings < (frame.count if frame.spacing > 0 else 1))
+    in_slab = np.where(valid, in_slab, 0.0)
+    shape = (len(keep), pings.shape[1], bins.shape[1])
     _deposit(
         sonar,
         frame,
         acc,
-        ping[keep],
-        rbin[keep].astype(np.int64),
-        starboard[keep],
-        depression,
-        weight,
+        np.broadcast_to(np.where(valid, pings, 0)[:, :, None], shape).ravel(),
+        np.broadcast_to(bins[:, None, :], shape).ravel(),
+        np.broadcast_to(starboard[keep, None, None], shape).ravel(),
+        np.broadcast_to(depression[:, None, None], shape).ravel(),
+        (weight[:, None, None] * in_slab[:, :, None] * in_bin[:, None, :]).ravel(),
     )
 
 
-def _ping_index(t: np.ndarray, frame: _Frame) -> tuple[np.ndarray, np.ndarray]:
-    """Ping of each patch within the segment and whether it is in a ping's slab."""
-    if frame.spacing > 0:
-        k = np.floor(t / frame.spacing + 0.5)
-        inside = (k >= 0) & (k < frame.count)
-        return np.where(inside, k, 0).astype(np.int64), inside
-    half = 0.5 * frame.width
-    return np.zeros(len(t), dtype=np.int64), (t > -half) & (t < half)
+#: Barycentric offsets of a patch's corners from its centroid along its two edges.
+_CORNER_OFFSETS = np.array([[-1.0, -1.0], [2.0, -1.0], [-1.0, 2.0]]) / 3.0
+
+
+def _spread(r: np.ndarray, bin_size: float, offset: float) -> tuple[np.ndarray, np.ndarray]:
+    """Share each patch's area among the bins ``[offset + k b, offset + (k + 1) b)`` it covers.
+
+    Used for range bins and for along-track ping slabs. A flat triangle over which a
+    coordinate varies linearly has a "hat" area density in it, rising
+    linearly from its nearest to its middle corner and falling to its farthest; its cumulative
+    area is ``(s - r0)² / ((r1 - r0)(r2 - r0))`` up to ``r1`` and
+    ``1 - (r2 - s)² / ((r2 - r0)(r2 - r1))`` after. Integrating it over each bin removes the
+    aliasing of putting a whole patch in the bin of its centroid.
+
+    Parameters
+    ----------
+    r : ndarray, shape (p, 3)
+        The coordinate (slant range, or along-track position) at each patch corner, metres.
+    bin_size : float
+        Bin width b, metres.
+    offset : float
+        Where bin 0 starts, metres.
+
+    Returns
+    -------
+    bins : ndarray, shape (p, k), int64
+        Bin indices (``-1`` where unused).
+    fractions : ndarray, shape (p, k)
+        Share of the patch's area in each bin; rows sum to 1.
+    """
+    r0, r1, r2 = (c[:, None] for c in np.sort(r - offset, axis=1).T)   # columns over bins
+    first = np.floor(r0[:, 0] / bin_size).astype(np.int64)
+    last = np.floor(r2[:, 0] / bin_size).astype(np.int64)
+    k = int((last - first).max(initial=0)) + 1
+    span = r2 - r0
+    tiny = span <= 1e-12 * np.maximum(r2, 1.0)
+    d01 = np.where(tiny, 1.0, np.maximum(r1 - r0, 0.0) * np.where(tiny, 1.0, span))
+    d12 = np.where(tiny, 1.0, np.maximum(r2 - r1, 0.0) * np.where(tiny, 1.0, span))
+
+    def cdf(s: np.ndarray) -> np.ndarray:
+        rising = (s - r0) ** 2 / np.where(d01 > 0, d01, 1.0)
+        falling = 1.0 - (r2 - s) ** 2 / np.where(d12 > 0, d12, 1.0)
+        out = np.where(s <= r1, np.where(d01 > 0, rising, 1.0), falling)
+        out = np.where(s <= r0, 0.0, np.where(s >= r2, 1.0, out))
+        return np.where(tiny, (s >= r0).astype(np.float64), out)
+
+    bins = first[:, None] + np.arange(k)
+    edges = bins * bin_size
+    fractions = cdf(np.minimum(edges + bin_size, r2 + 1.0)) - cdf(edges)
+    fractions = np.where(tiny, (np.arange(k) == 0).astype(np.float64), fractions)
+    used = bins <= last[:, None]
+    return np.where(used, bins, -1), np.where(used, fractions, 0.0)
 
 
 def _visible(
@@ -522,6 +595,9 @@ def _deposit(
 ) -> None:
     """Multiply by the beam and sum into the pings' range bins of each side."""
     n_bins = sonar.n_bins
+    inside = (rbin >= 0) & (rbin < n_bins) & (weight > 0)
+    ping, rbin, starboard = ping[inside], rbin[inside], starboard[inside]
+    depression, weight = depression[inside], weight[inside]
     for side, sign, mask in (("starboard", 1.0, starboard), ("port", -1.0, ~starboard)):
         if side not in acc or not mask.any():
             continue
@@ -529,11 +605,10 @@ def _deposit(
         if frame.spacing > 0:
             roll = frame.roll[ping[mask]]
             w = weight[mask] * _beam(sonar, depression[mask] - sonar.tilt - sign * roll)
-            flat = ping[mask] * n_bins + rbin[mask]
+            flat = (frame.first + ping[mask]) * n_bins + rbin[mask]
             lo = int(flat.min())
             sums = np.bincount(flat - lo, weights=w)
-            block = rows[frame.first : frame.first + frame.count].reshape(-1)
-            block[lo : lo + len(sums)] += sums
+            rows.reshape(-1)[lo : lo + len(sums)] += sums  # a view: acc is C-contiguous
             continue
         for roll in np.unique(frame.roll):
             w = weight[mask] * _beam(sonar, depression[mask] - sonar.tilt - sign * roll)
