@@ -25,7 +25,7 @@ def _positive(kind: type):
             value = kind(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-        if not value > 0 or value != value or value in (float("inf"),):
+        if not (0 < value < float("inf")):
             raise argparse.ArgumentTypeError(f"must be > 0, got {text}")
         return value
 
@@ -33,12 +33,21 @@ def _positive(kind: type):
     return parse
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors: ``sonar-raster: error: ... (see --help)``, exit 2."""
+
+    def error(self, message: str):  # type: ignore[override]
+        print(f"sonar-raster: error: {message} (see '{self.prog} --help')", file=sys.stderr)
+        sys.exit(EXIT_BAD_INPUT)
+
+
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="sonar-raster",
         description="Side-scan sonar images from 3D scenes, rendered with headless OpenGL.",
     )
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND",
+                                parser_class=_Parser)
 
     render = sub.add_parser("render", help="render a scene to PNG and/or EXR",
                             description="Render a scene description (.toml), a bare model file "
@@ -138,9 +147,9 @@ def _scenes() -> int:
 def _doctor() -> int:
     from importlib import metadata
 
-    from .glcontext import BACKENDS, ENV_VAR, probe
-
     import os
+
+    from .glcontext import BACKENDS, ENV_VAR, probe
 
     print(f"{ENV_VAR}={os.environ.get(ENV_VAR, '(unset)')}")
     ok = False
