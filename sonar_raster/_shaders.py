@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-from functools import lru_cache
+from collections.abc import Mapping
+from functools import cache
 from importlib import resources
 
 STAGES = ("VERTEX_SHADER", "GEOMETRY_SHADER", "FRAGMENT_SHADER", "COMPUTE_SHADER")
 
 
-@lru_cache(maxsize=None)
+@cache
 def shader_source(name: str) -> str:
     """Text of ``shaders/<name>``; raises FileNotFoundError naming the file if it is missing."""
     path = resources.files("sonar_raster.shaders").joinpath(name)
@@ -17,7 +18,7 @@ def shader_source(name: str) -> str:
     return path.read_text(encoding="utf-8")
 
 
-def specialise(name: str, stage: str, defines: dict[str, object]) -> str:
+def specialise(name: str, stage: str, defines: Mapping[str, object]) -> str:
     """Source of one stage of ``name`` with ``#define`` lines inserted after ``#version``.
 
     Each stage's section sits in ``#if defined STAGE`` blocks of the file, as moderngl-window

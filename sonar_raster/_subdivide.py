@@ -20,7 +20,7 @@ def _pattern(n: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def subdivision_counts(tri: np.ndarray, max_edge: float) -> np.ndarray:
-    """Pieces per edge ``n`` for each triangle of ``tri`` (m, 3, 3): ceil(longest edge / max_edge)."""
+    """Pieces per edge for each triangle of ``tri`` (m, 3, 3): ceil(longest edge / max_edge)."""
     edges = np.stack([tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 1], tri[:, 0] - tri[:, 2]], axis=1)
     longest = np.sqrt(np.einsum("mkj,mkj->mk", edges, edges).max(axis=1))
     return np.maximum(1, np.ceil(longest / max_edge)).astype(np.int64)

@@ -49,7 +49,7 @@ class Warp:
         s = math.sin(self.alpha0)
         return self.h * math.cos(self.alpha0) / (s * s) + self.c * self.h
 
-    def rho(self, alpha: np.ndarray) -> np.ndarray:
+    def rho(self, alpha: np.ndarray | float) -> np.ndarray:
         """ρ_w(α), vectorised, float64."""
         a = np.asarray(alpha, dtype=np.float64)
         above = self.h / np.sin(np.maximum(a, self.alpha0)) + self.c * self.h * (HALF_PI - a)
@@ -78,5 +78,7 @@ class Warp:
         rho_lo, rho_hi = self.rho_range
         edges = rho_lo + (rho_hi - rho_lo) * np.arange(first, first + count + 1) / total
         a_edges = self.alpha(edges)
-        centres = self.alpha(rho_lo + (rho_hi - rho_lo) * (np.arange(first, first + count) + 0.5) / total)
+        centres = self.alpha(
+            rho_lo + (rho_hi - rho_lo) * (np.arange(first, first + count) + 0.5) / total
+        )
         return centres, np.abs(np.diff(a_edges))

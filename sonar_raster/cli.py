@@ -46,34 +46,70 @@ def _parser() -> argparse.ArgumentParser:
         prog="sonar-raster",
         description="Side-scan sonar images from 3D scenes, rendered with headless OpenGL.",
     )
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND",
-                                parser_class=_Parser)
+    sub = parser.add_subparsers(
+        dest="command", required=True, metavar="COMMAND", parser_class=_Parser
+    )
 
-    render = sub.add_parser("render", help="render a scene to PNG and/or EXR",
-                            description="Render a scene description (.toml), a bare model file "
-                            "(.wrl .gltf .glb .obj .ply .stl) or a bundled scene by name "
-                            "(see 'sonar-raster scenes') to sonar images.")
+    render = sub.add_parser(
+        "render",
+        help="render a scene to PNG and/or EXR",
+        description="Render a scene description (.toml), a bare model file "
+        "(.wrl .gltf .glb .obj .ply .stl) or a bundled scene by name "
+        "(see 'sonar-raster scenes') to sonar images.",
+    )
     render.add_argument("scene", help="scene file, model file, or bundled scene name")
-    render.add_argument("-o", "--output", action="append", required=True, metavar="OUT",
-                        help="output .png (display image) or .exr (linear float); repeatable")
-    render.add_argument("--range", dest="max_range", type=_positive(float), metavar="METRES",
-                        help="maximum slant range")
-    render.add_argument("--range-bin", type=_positive(float), metavar="METRES",
-                        help="slant-range bin size")
-    render.add_argument("--altitude", type=_positive(float), metavar="METRES",
-                        help="sonar altitude above the seabed")
+    render.add_argument(
+        "-o",
+        "--output",
+        action="append",
+        required=True,
+        metavar="OUT",
+        help="output .png (display image) or .exr (linear float); repeatable",
+    )
+    render.add_argument(
+        "--range",
+        dest="max_range",
+        type=_positive(float),
+        metavar="METRES",
+        help="maximum slant range",
+    )
+    render.add_argument(
+        "--range-bin", type=_positive(float), metavar="METRES", help="slant-range bin size"
+    )
+    render.add_argument(
+        "--altitude",
+        type=_positive(float),
+        metavar="METRES",
+        help="sonar altitude above the seabed",
+    )
     render.add_argument("--pings", type=_positive(int), metavar="N", help="number of pings")
     render.add_argument("--side", choices=sorted(_SIDE_CHOICES), help="sides to image")
-    render.add_argument("--renderer", choices=("gl", "reference"), default="gl",
-                        help="gl: OpenGL rasteriser (default); reference: slow numpy oracle")
-    render.add_argument("--gl", choices=("egl", "osmesa"), default=None,
-                        help="headless GL backend (default: $SONAR_RASTER_GL, else EGL then "
-                        "OSMesa)")
-    render.add_argument("--oversample", type=_positive(float), default=None,
-                        help="look-angle samples per range bin (GL renderer, default 4)")
+    render.add_argument(
+        "--renderer",
+        choices=("gl", "reference"),
+        default="gl",
+        help="gl: OpenGL rasteriser (default); reference: slow numpy oracle",
+    )
+    render.add_argument(
+        "--gl",
+        choices=("egl", "osmesa"),
+        default=None,
+        help="headless GL backend (default: $SONAR_RASTER_GL, else EGL then OSMesa)",
+    )
+    render.add_argument(
+        "--oversample",
+        type=_positive(float),
+        default=None,
+        help="look-angle samples per range bin (GL renderer, default 4)",
+    )
     render.add_argument("--bits", type=int, choices=(8, 16), default=8, help="PNG bit depth")
-    render.add_argument("--dynamic-range", type=_positive(float), default=60.0, metavar="DB",
-                        help="PNG display range in dB below the reference level (default 60)")
+    render.add_argument(
+        "--dynamic-range",
+        type=_positive(float),
+        default=60.0,
+        metavar="DB",
+        help="PNG display range in dB below the reference level (default 60)",
+    )
     render.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
 
     sub.add_parser("scenes", help="list the bundled scenes")
@@ -96,8 +132,9 @@ def _check_outputs(outputs: list[str]) -> list[Path]:
         if p.suffix.lower() not in _OUTPUT_SUFFIXES:
             raise SonarRasterError(f"output {p}: unknown extension; use .png or .exr")
         if not p.parent.is_dir():
-            raise SonarRasterError(f"cannot write {p}: directory {p.parent} does not exist; "
-                                   "create it first")
+            raise SonarRasterError(
+                f"cannot write {p}: directory {p.parent} does not exist; create it first"
+            )
     return paths
 
 
@@ -105,9 +142,13 @@ def _render(args: argparse.Namespace) -> int:
     outputs = _check_outputs(args.output)
     from .description import Overrides, load_scene_file
 
-    overrides = Overrides(max_range=args.max_range, range_bin=args.range_bin,
-                          altitude=args.altitude, pings=args.pings,
-                          sides=_SIDE_CHOICES[args.side] if args.side else None)
+    overrides = Overrides(
+        max_range=args.max_range,
+        range_bin=args.range_bin,
+        altitude=args.altitude,
+        pings=args.pings,
+        sides=_SIDE_CHOICES[args.side] if args.side else None,
+    )
     setup = load_scene_file(_resolve_scene(args.scene), overrides)
     if args.renderer == "reference":
         from .reference import render_reference
@@ -117,20 +158,30 @@ def _render(args: argparse.Namespace) -> int:
         from .raster import RasterSettings, render_raster
 
         settings = RasterSettings(oversample=args.oversample or RasterSettings.oversample)
-        image = render_raster(setup.scene, setup.sonar, setup.trajectory, backend=args.gl,
-                              settings=settings, progress=not args.quiet)
-    image.metadata.update({"scene": setup.source, "altitude_m": setup.altitude,
-                           "pings": setup.trajectory.n_pings})
+        image = render_raster(
+            setup.scene,
+            setup.sonar,
+            setup.trajectory,
+            backend=args.gl,
+            settings=settings,
+            progress=not args.quiet,
+        )
+    image.metadata.update(
+        {"scene": setup.source, "altitude_m": setup.altitude, "pings": setup.trajectory.n_pings}
+    )
     from .io import write_image
 
     written = []
     for path in outputs:
-        written += write_image(image, path, bit_depth=args.bits,
-                               dynamic_range_db=args.dynamic_range)
+        written += write_image(
+            image, path, bit_depth=args.bits, dynamic_range_db=args.dynamic_range
+        )
     if not args.quiet:
         pings, bins = image.shape
-        print(f"rendered {setup.source}: {setup.scene.n_triangles} triangles, {pings} pings x "
-              f"{bins} bins per side ({', '.join(image.sides)})")
+        print(
+            f"rendered {setup.source}: {setup.scene.n_triangles} triangles, {pings} pings x "
+            f"{bins} bins per side ({', '.join(image.sides)})"
+        )
         for path in dict.fromkeys(written):
             print(f"wrote {path}")
     return 0
@@ -145,9 +196,8 @@ def _scenes() -> int:
 
 
 def _doctor() -> int:
-    from importlib import metadata
-
     import os
+    from importlib import metadata
 
     from .glcontext import BACKENDS, ENV_VAR, probe
 
@@ -157,13 +207,25 @@ def _doctor() -> int:
         info = probe(backend)
         if info["ok"] == "yes":
             ok = True
-            print(f"{backend:7s} ok   {info['renderer']} | OpenGL {info['version']} | "
-                  f"max texture {info['max_texture_size']}")
+            print(
+                f"{backend:7s} ok   {info['renderer']} | OpenGL {info['version']} | "
+                f"max texture {info['max_texture_size']}"
+            )
         else:
             print(f"{backend:7s} FAIL {info['error']}")
     print(f"python  {sys.version.split()[0]}")
-    for pkg in ("sonar_raster", "moderngl", "glcontext", "numpy", "scipy", "trimesh",
-                "OpenImageIO", "scikit-image", "rasterio", "embreex"):
+    for pkg in (
+        "sonar_raster",
+        "moderngl",
+        "glcontext",
+        "numpy",
+        "scipy",
+        "trimesh",
+        "OpenImageIO",
+        "scikit-image",
+        "rasterio",
+        "embreex",
+    ):
         try:
             version = metadata.version(pkg)
         except metadata.PackageNotFoundError:

@@ -28,8 +28,8 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 MODEL_SUFFIXES = (".wrl", ".vrml", ".gltf", ".glb", ".obj", ".ply", ".stl", ".off")
-_Y_UP_SUFFIXES = (".gltf", ".glb", ".wrl", ".vrml")   # y-up by their specifications
-DEFAULT_SEABED_REFLECTIVITY = 0.3    # sand, relative to a rigid object's ~0.9
+_Y_UP_SUFFIXES = (".gltf", ".glb", ".wrl", ".vrml")  # y-up by their specifications
+DEFAULT_SEABED_REFLECTIVITY = 0.3  # sand, relative to a rigid object's ~0.9
 
 
 @dataclass(frozen=True)
@@ -130,8 +130,9 @@ def _beam(spec: Any, frequency: float, base: Path, where: str) -> BeamPattern:
     elif kind == "table":
         beam = BeamPattern.from_csv(str(base / _take(spec, "path", "", str, where)))
     else:
-        raise SonarRasterError(f"{where}: unknown beam kind {kind!r}; use uniform, gaussian, sinc "
-                               "or table")
+        raise SonarRasterError(
+            f"{where}: unknown beam kind {kind!r}; use uniform, gaussian, sinc or table"
+        )
     _no_leftovers(spec, f"{where} beam")
     return beam
 
@@ -194,8 +195,9 @@ def _primitive(spec: dict, where: str) -> list[MeshPart]:
         length = float(_take(spec, "length", 2.0, number, where))
         mesh = trimesh.creation.cylinder(radius=radius, height=length, sections=64)
     elif kind == "sphere":
-        mesh = trimesh.creation.icosphere(subdivisions=4,
-                                          radius=float(_take(spec, "radius", 0.5, number, where)))
+        mesh = trimesh.creation.icosphere(
+            subdivisions=4, radius=float(_take(spec, "radius", 0.5, number, where))
+        )
     else:
         raise SonarRasterError(f"{where}: unknown primitive {kind!r}; use box, cylinder or sphere")
     return [MeshPart(np.asarray(mesh.vertices), np.asarray(mesh.faces), 0.9, str(kind))]
@@ -214,15 +216,19 @@ def _object(spec: dict, base: Path, seabed: Heightfield | None, k: int) -> list[
         parts = load_model(model)
         up = "y" if model.suffix.lower() in _Y_UP_SUFFIXES else "z"
     else:
-        raise SonarRasterError(f"{where}: give 'file' (a model) or 'primitive' (box, cylinder, "
-                               "sphere)")
+        raise SonarRasterError(
+            f"{where}: give 'file' (a model) or 'primitive' (box, cylinder, sphere)"
+        )
     number = (int, float)
     up = _take(spec, "up", up, str, where)
     if up not in ("y", "z"):
-        raise SonarRasterError(f"{where}: 'up' must be \"y\" or \"z\"")
+        raise SonarRasterError(f'{where}: \'up\' must be "y" or "z"')
     position = _vector(_take(spec, "position", [0.0, 0.0], list, where), (2, 3), "position", where)
-    rotation = _rotation(_vector(_take(spec, "rotation_deg", [0.0, 0.0, 0.0], list, where), (3,),
-                                 "rotation_deg", where))
+    rotation = _rotation(
+        _vector(
+            _take(spec, "rotation_deg", [0.0, 0.0, 0.0], list, where), (3,), "rotation_deg", where
+        )
+    )
     if up == "y":
         rotation = rotation @ _rotation(np.array([90.0, 0.0, 0.0]))
     scale = float(_take(spec, "scale", 1.0, number, where))
@@ -240,17 +246,23 @@ def _object(spec: dict, base: Path, seabed: Heightfield | None, k: int) -> list[
     else:
         offset = position
     out = []
-    for j, (part, v) in enumerate(zip(parts, moved)):
+    for j, (part, v) in enumerate(zip(parts, moved, strict=True)):
         label = name if name and len(parts) == 1 else (f"{name}/{part.name}" if name else part.name)
-        out.append(MeshPart(v + offset, part.faces,
-                            part.reflectivity if reflectivity is None else float(reflectivity),
-                            label or f"object{k}_{j}"))
+        out.append(
+            MeshPart(
+                v + offset,
+                part.faces,
+                part.reflectivity if reflectivity is None else float(reflectivity),
+                label or f"object{k}_{j}",
+            )
+        )
     return out
 
 
 # -- trajectory --------------------------------------------------------------------------------
-def _trajectory(table: dict, ground_z: float, base: Path, ov: Overrides,
-                where: str) -> tuple[Trajectory, float]:
+def _trajectory(
+    table: dict, ground_z: float, base: Path, ov: Overrides, where: str
+) -> tuple[Trajectory, float]:
     number = (int, float)
     if "csv" in table:
         path = base / str(table.pop("csv"))
@@ -309,10 +321,12 @@ def _from_model(path: Path, ov: Overrides) -> SceneSetup:
     size = max(float(np.ptp(np.concatenate([p.vertices for p in objects]), axis=0).max()), 0.1)
     length = max(20.0, 6.0 * size)
     pings = ov.pings if ov.pings is not None else 200
-    seabed = make_seabed("flat", size=(2.2 * sonar.max_range, length + 20.0),
-                         center=(0.0, 0.0), depth=0.0)
+    seabed = make_seabed(
+        "flat", size=(2.2 * sonar.max_range, length + 20.0), center=(0.0, 0.0), depth=0.0
+    )
     parts = [seabed.mesh(DEFAULT_SEABED_REFLECTIVITY, "seabed"), *objects]
     scene = build_scene(parts)
-    traj = Trajectory.straight((0.0, -0.5 * length, altitude), 0.0, length / max(pings - 1, 1),
-                               pings)
+    traj = Trajectory.straight(
+        (0.0, -0.5 * length, altitude), 0.0, length / max(pings - 1, 1), pings
+    )
     return SceneSetup(scene, sonar, traj, str(path), altitude)

@@ -60,13 +60,28 @@ class _OSMesaLoader:
         lib.OSMesaCreateContextAttribs.restype = ctypes.c_void_p
         lib.OSMesaCreateContextAttribs.argtypes = [ctypes.POINTER(ctypes.c_int), ctypes.c_void_p]
         lib.OSMesaMakeCurrent.argtypes = [
-            ctypes.c_void_p, ctypes.c_void_p, ctypes.c_uint, ctypes.c_int, ctypes.c_int
+            ctypes.c_void_p,
+            ctypes.c_void_p,
+            ctypes.c_uint,
+            ctypes.c_int,
+            ctypes.c_int,
         ]
         lib.OSMesaGetProcAddress.restype = ctypes.c_void_p
         lib.OSMesaGetProcAddress.argtypes = [ctypes.c_char_p]
         lib.OSMesaDestroyContext.argtypes = [ctypes.c_void_p]
-        attrs = [_OSMESA_FORMAT, _OSMESA_RGBA, _OSMESA_DEPTH_BITS, 24,
-                 _OSMESA_PROFILE, _OSMESA_CORE_PROFILE, _OSMESA_MAJOR, 4, _OSMESA_MINOR, 5, 0]
+        attrs = [
+            _OSMESA_FORMAT,
+            _OSMESA_RGBA,
+            _OSMESA_DEPTH_BITS,
+            24,
+            _OSMESA_PROFILE,
+            _OSMESA_CORE_PROFILE,
+            _OSMESA_MAJOR,
+            4,
+            _OSMESA_MINOR,
+            5,
+            0,
+        ]
         handle = lib.OSMesaCreateContextAttribs((ctypes.c_int * len(attrs))(*attrs), None)
         if not handle:
             raise RuntimeError("OSMesaCreateContextAttribs failed (no OpenGL 4.5 core profile)")
@@ -96,9 +111,9 @@ def _create(backend: str) -> Any:
     import moderngl
 
     if backend == "egl":
-        return moderngl.create_standalone_context(backend="egl", require=GL_REQUIRE)
+        return moderngl.create_standalone_context(backend="egl", require=GL_REQUIRE)  # type: ignore[arg-type]
     loader = _OSMesaLoader()
-    ctx = moderngl.create_context(require=GL_REQUIRE, context=loader)
+    ctx = moderngl.create_context(require=GL_REQUIRE, context=loader)  # type: ignore[arg-type]
     ctx.extra = {"osmesa_loader": loader}
     return ctx
 

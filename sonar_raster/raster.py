@@ -30,7 +30,7 @@ from .trajectory import Segment, Trajectory
 log = logging.getLogger(__name__)
 
 MAX_TEXTURE = 16384
-MAX_TEXELS = 1 << 26          # largest framebuffer per draw (64 M samples, 768 MiB of targets)
+MAX_TEXELS = 1 << 26  # largest framebuffer per draw (64 M samples, 768 MiB of targets)
 _FIXED_POINT_TOP = float(1 << 30)
 _GL_DEPTH_CLAMP = 0x864F
 _SPLITS = ("nearest", "linear", "footprint")
@@ -84,8 +84,8 @@ class _Draw:
     frame_sign: float
     warp: Warp
     beam_axis: float
-    rows: int              # pings rendered (1 for a stationary segment)
-    spacing: float         # along-track metres per ping row block
+    rows: int  # pings rendered (1 for a stationary segment)
+    spacing: float  # along-track metres per ping row block
 
 
 class RasterRenderer:
@@ -169,7 +169,7 @@ class RasterRenderer:
         if key == self._scene_key:
             return
         self._release_geometry()
-        vertices = scene.vertices - origin                      # float64 shift, then float32
+        vertices = scene.vertices - origin  # float64 shift, then float32
         faces, refl = scene.faces, scene.reflectivity
         tri = vertices[faces]
         counts = subdivision_counts(tri, max_edge)
@@ -187,10 +187,20 @@ class RasterRenderer:
         vbo = ctx.buffer(vertices.astype("f4").tobytes())
         ibo = ctx.buffer(faces.astype("u4").tobytes())
         face_buf = ctx.buffer(refl.astype("f4").tobytes())
-        vao = ctx.vertex_array(self._program("samples"), [(vbo, "3f", "in_pos")], index_buffer=ibo,
-                               index_element_size=4)
-        self._geometry = {"vbo": vbo, "ibo": ibo, "faces": face_buf, "vao": vao,
-                          "n_faces": len(faces), "r_max": float(refl.max(initial=0.0))}
+        vao = ctx.vertex_array(
+            self._program("samples"),
+            [(vbo, "3f", "in_pos")],
+            index_buffer=ibo,
+            index_element_size=4,
+        )
+        self._geometry = {
+            "vbo": vbo,
+            "ibo": ibo,
+            "faces": face_buf,
+            "vao": vao,
+            "n_faces": len(faces),
+            "r_max": float(refl.max(initial=0.0)),
+        }
         self._scene_key = key
 
     def _release_targets(self) -> None:
@@ -213,11 +223,13 @@ class RasterRenderer:
     def _plan(self, scene: Scene, sonar: Sonar, trajectory: Trajectory) -> list[_Draw]:
         tol = sonar.range_bin / 4.0
         along = self.settings.along_samples
-        max_rows = max(1, min(MAX_TEXTURE, MAX_TEXELS // self._columns_total_estimate(sonar))) // along
+        max_rows = (
+            max(1, min(MAX_TEXTURE, MAX_TEXELS // self._columns_total_estimate(sonar))) // along
+        )
         z_top = float(scene.bounds[1, 2])
         draws = []
         for seg in trajectory.segments(tol, max_count=max(1, max_rows)):
-            roll = float(np.mean(trajectory.roll[seg.first:seg.first + seg.count]))
+            roll = float(np.mean(trajectory.roll[seg.first : seg.first + seg.count]))
             altitude = float(seg.origin[2] - scene.ground_z)
             alpha_top = math.atan2(float(seg.origin[2]) - z_top, sonar.max_range)
             warp = Warp.make(altitude, sonar.max_range, alpha_top, self.settings.near_nadir)
@@ -226,12 +238,18 @@ class RasterRenderer:
                 sign = 1.0 if side == "starboard" else -1.0
                 axis_side = sign * seg.starboard
                 det = float(np.linalg.det(np.stack([seg.along, axis_side, seg.up])))
-                draws.append(_Draw(
-                    segment=seg, side=side, axis_side=axis_side, frame_sign=det, warp=warp,
-                    beam_axis=sonar.tilt + sign * roll,
-                    rows=1 if stationary else seg.count,
-                    spacing=seg.width if stationary else seg.spacing,
-                ))
+                draws.append(
+                    _Draw(
+                        segment=seg,
+                        side=side,
+                        axis_side=axis_side,
+                        frame_sign=det,
+                        warp=warp,
+                        beam_axis=sonar.tilt + sign * roll,
+                        rows=1 if stationary else seg.count,
+                        spacing=seg.width if stationary else seg.spacing,
+                    )
+                )
         return draws
 
     def _columns_total_estimate(self, sonar: Sonar) -> int:
@@ -239,19 +257,23 @@ class RasterRenderer:
 
     def _columns_total(self, warp: Warp, sonar: Sonar) -> int:
         rho_lo, rho_hi = warp.rho_range
-        return max(8, int(math.ceil(self.settings.oversample * (rho_hi - rho_lo) / sonar.range_bin)))
+        return max(
+            8, int(math.ceil(self.settings.oversample * (rho_hi - rho_lo) / sonar.range_bin))
+        )
 
     # -- rendering --------------------------------------------------------------------------
-    def render(self, scene: Scene, sonar: Sonar, trajectory: Trajectory,
-               progress: bool = False) -> SonarImage:
+    def render(
+        self, scene: Scene, sonar: Sonar, trajectory: Trajectory, progress: bool = False
+    ) -> SonarImage:
         """Render one image per side (see :meth:`_render`); makes this context current first."""
         if self.ctx is None:
             raise SonarRasterError("this renderer was released; make a new one")
         with self.ctx:
             return self._render(scene, sonar, trajectory, progress)
 
-    def _render(self, scene: Scene, sonar: Sonar, trajectory: Trajectory,
-                progress: bool) -> SonarImage:
+    def _render(
+        self, scene: Scene, sonar: Sonar, trajectory: Trajectory, progress: bool
+    ) -> SonarImage:
         """Render one image per side.
 
         Parameters
@@ -279,7 +301,7 @@ class RasterRenderer:
         for buf in cells.values():
             buf.clear()
         try:
-            items = list(zip(draws, tables))
+            items = list(zip(draws, tables, strict=True))
             if progress:
                 from tqdm import tqdm
 
@@ -290,8 +312,13 @@ class RasterRenderer:
         finally:
             for buf in cells.values():
                 buf.release()
-        meta = {"renderer": "gl", "settings": asdict(self.settings), **self.gl_info,
-                "draws": len(draws), "triangles": int(self._geometry["n_faces"])}
+        meta = {
+            "renderer": "gl",
+            "settings": asdict(self.settings),
+            **self.gl_info,
+            "draws": len(draws),
+            "triangles": int(self._geometry["n_faces"]),
+        }
         return SonarImage(sides=sides, sonar=sonar, metadata=meta)
 
     def _column_tables(self, draw: _Draw, sonar: Sonar) -> list[tuple[int, int, int, np.ndarray]]:
@@ -308,16 +335,16 @@ class RasterRenderer:
 
     def _fixed_point_scale(self, draws: list[_Draw], tables: list) -> float:
         bound = 0.0
-        for draw, tiles in zip(draws, tables):
+        for draw, tiles in zip(draws, tables, strict=True):
             phid = max(float(t[3][:, 1].max()) for t in tiles)
             row_width = draw.segment.width / self.settings.along_samples
             # Only samples inside the image (slant range <= max range) are deposited.
             bound = max(bound, self._geometry["r_max"] * phid * self._max_range * row_width)
         return _FIXED_POINT_TOP / bound if bound > 0 else 1.0
 
-
-    def _draw(self, draw: _Draw, tiles: list, origin: np.ndarray, sonar: Sonar, scale: float,
-              cells: Any) -> None:
+    def _draw(
+        self, draw: _Draw, tiles: list, origin: np.ndarray, sonar: Sonar, scale: float, cells: Any
+    ) -> None:
         ctx = self.ctx
         seg = draw.segment
         along = self.settings.along_samples
@@ -328,14 +355,20 @@ class RasterRenderer:
         rho_lo_all, rho_hi_all = draw.warp.rho_range
         uniforms = {
             "seg_origin": tuple((seg.origin - origin).astype("f4")),
-            "axis_along": tuple(seg.along), "axis_side": tuple(draw.axis_side),
+            "axis_along": tuple(seg.along),
+            "axis_side": tuple(draw.axis_side),
             "axis_up": tuple(seg.up),
-            "warp_h": draw.warp.h, "warp_c": draw.warp.c, "alpha0": draw.warp.alpha0,
-            "rho0": draw.warp.rho0, "slope0": draw.warp.slope0,
+            "warp_h": draw.warp.h,
+            "warp_c": draw.warp.c,
+            "alpha0": draw.warp.alpha0,
+            "rho0": draw.warp.rho0,
+            "slope0": draw.warp.slope0,
             "row_scale": 2.0 / (draw.spacing * draw.rows),
             "row_offset": 2.0 * 0.5 / draw.rows - 1.0,
-            "far_range": far, "alpha_span_max": 0.5 * math.pi,
-            "spacing": draw.spacing, "rows_per_ping": float(along),
+            "far_range": far,
+            "alpha_span_max": 0.5 * math.pi,
+            "spacing": draw.spacing,
+            "rows_per_ping": float(along),
             "row_width": seg.width / along,
             # -1 when the (along, side, up) frame is left-handed: flips the computed normals.
             "frame_sign": draw.frame_sign,
@@ -372,21 +405,28 @@ class RasterRenderer:
             finally:
                 col_tex.release()
 
-    def _read(self, cells: Any, draws: list[_Draw], scale: float, n_pings: int, n_bins: int,
-              side: str) -> np.ndarray:
+    def _read(
+        self, cells: Any, draws: list[_Draw], scale: float, n_pings: int, n_bins: int, side: str
+    ) -> np.ndarray:
         # Each cell is a (low, high) pair of uint32: read as one little-endian uint64.
         total = np.frombuffer(cells.read(), dtype="<u8").reshape(n_pings, n_bins)
         image = (total * (1.0 / scale)).astype(np.float32)
         for draw in draws:
             seg = draw.segment
             if draw.side == side and draw.rows == 1 and seg.count > 1:
-                image[seg.first + 1:seg.first + seg.count] = image[seg.first]
+                image[seg.first + 1 : seg.first + seg.count] = image[seg.first]
         return image
 
 
-def render_raster(scene: Scene, sonar: Sonar, trajectory: Trajectory, *,
-                  backend: str | None = None, settings: RasterSettings | None = None,
-                  progress: bool = False) -> SonarImage:
+def render_raster(
+    scene: Scene,
+    sonar: Sonar,
+    trajectory: Trajectory,
+    *,
+    backend: str | None = None,
+    settings: RasterSettings | None = None,
+    progress: bool = False,
+) -> SonarImage:
     """Render with a temporary :class:`RasterRenderer` (see its ``render``)."""
     with RasterRenderer(backend, settings) as renderer:
         return renderer.render(scene, sonar, trajectory, progress=progress)

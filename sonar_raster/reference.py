@@ -519,7 +519,7 @@ def _spread(r: np.ndarray, bin_size: float, offset: float) -> tuple[np.ndarray, 
     fractions : ndarray, shape (p, k)
         Share of the patch's area in each bin; rows sum to 1.
     """
-    r0, r1, r2 = (c[:, None] for c in np.sort(r - offset, axis=1).T)   # columns over bins
+    r0, r1, r2 = (c[:, None] for c in np.sort(r - offset, axis=1).T)  # columns over bins
     first = np.floor(r0[:, 0] / bin_size).astype(np.int64)
     last = np.floor(r2[:, 0] / bin_size).astype(np.int64)
     k = int((last - first).max(initial=0)) + 1

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -71,7 +72,7 @@ class Scene:
     object_id: np.ndarray
     names: tuple[str, ...] = field(default_factory=tuple)
     ground_z: float = 0.0
-    bounds: np.ndarray = field(default=None, repr=False)  # type: ignore[assignment]
+    bounds: Any = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         if self.bounds is None:

@@ -69,7 +69,9 @@ class BeamPattern:
         return cls(a, np.exp(-0.5 * (a / sigma) ** 2), "gaussian")
 
     @classmethod
-    def sinc(cls, aperture_m: float, frequency_hz: float, sound_speed: float = 1500.0) -> BeamPattern:
+    def sinc(
+        cls, aperture_m: float, frequency_hz: float, sound_speed: float = 1500.0
+    ) -> BeamPattern:
         """Two-way pattern of a uniform line aperture: ``sinc(L sin(a) / λ) ** 4``."""
         if not (aperture_m > 0 and frequency_hz > 0):
             raise SonarRasterError("aperture and frequency must be > 0")
@@ -81,7 +83,9 @@ class BeamPattern:
     def from_csv(cls, path: str) -> BeamPattern:
         """Read a table of ``angle_deg, value`` rows (header line allowed)."""
         try:
-            data = np.loadtxt(path, delimiter=",", ndmin=2, comments="#", skiprows=_header_rows(path))
+            data = np.loadtxt(
+                path, delimiter=",", ndmin=2, comments="#", skiprows=_header_rows(path)
+            )
         except (OSError, ValueError) as exc:
             raise SonarRasterError(f"cannot read beam pattern table {path}: {exc}") from None
         if data.shape[1] != 2:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -106,7 +107,7 @@ class Trajectory:
     def from_csv(cls, path: str) -> Trajectory:
         """Read poses from a CSV with a header naming ``x, y, z, heading_deg`` [, ``roll_deg``]."""
         try:
-            data = np.genfromtxt(path, delimiter=",", names=True, dtype=np.float64, ndmin=1)
+            data: Any = np.genfromtxt(path, delimiter=",", names=True, dtype=np.float64, ndmin=1)
         except (OSError, ValueError) as exc:
             raise SonarRasterError(f"cannot read trajectory CSV {path}: {exc}") from None
         names = data.dtype.names or ()

@@ -48,7 +48,9 @@ def plane(size: float, z: float = 0.0, reflectivity: float = 0.5, center=(0.0, 0
     """A square seabed of two triangles, counter-clockwise from above."""
     cx, cy = center
     h = size / 2
-    v = np.array([[cx - h, cy - h, z], [cx + h, cy - h, z], [cx + h, cy + h, z], [cx - h, cy + h, z]])
+    v = np.array(
+        [[cx - h, cy - h, z], [cx + h, cy - h, z], [cx + h, cy + h, z], [cx - h, cy + h, z]]
+    )
     return MeshPart(v, np.array([[0, 1, 2], [0, 2, 3]]), reflectivity, "seabed", is_seabed=True)
 
 
@@ -57,8 +59,9 @@ def box(center, size, reflectivity: float = 0.9, name: str = "box") -> MeshPart:
     import trimesh
 
     mesh = trimesh.creation.box(extents=size)
-    return MeshPart(np.asarray(mesh.vertices) + np.asarray(center), np.asarray(mesh.faces),
-                    reflectivity, name)
+    return MeshPart(
+        np.asarray(mesh.vertices) + np.asarray(center), np.asarray(mesh.faces), reflectivity, name
+    )
 
 
 @pytest.fixture()

@@ -14,8 +14,9 @@ NAMES = [name for name, _ in list_bundled()]
 
 
 def test_the_four_scenes_are_bundled():
-    assert {"barrel_on_sand", "cylinder_on_flat", "truck_wheel_on_clay",
-            "flat_calibration"} <= set(NAMES)
+    assert {"barrel_on_sand", "cylinder_on_flat", "truck_wheel_on_clay", "flat_calibration"} <= set(
+        NAMES
+    )
     assert DEFAULT_SCENE in NAMES
     assert bundled_scene("default").stem == DEFAULT_SCENE
 

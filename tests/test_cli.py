@@ -20,8 +20,12 @@ f 4 1 5\nf 4 5 8
 
 
 def run_cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "sonar_raster.cli", *args],
-                          capture_output=True, text=True, timeout=300)
+    return subprocess.run(
+        [sys.executable, "-m", "sonar_raster.cli", *args],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
 
 
 def test_render_bundled_default_to_png_and_exr(tmp_path):
@@ -46,9 +50,9 @@ def test_bare_model_renders_on_a_default_seabed(tmp_path):
     # The cube stands mid-swath to starboard: its echo and shadow break the seabed's profile.
     profile = np.median(star, axis=0)
     middle = star[17:23]
-    assert np.any(middle > 2 * profile + 1e-6)           # bright face towards the sonar
-    assert np.any((middle == 0) & (profile > 0))         # its shadow
-    assert np.all(star[:5] <= 1.0001 * profile)          # pings far from it see only seabed
+    assert np.any(middle > 2 * profile + 1e-6)  # bright face towards the sonar
+    assert np.any((middle == 0) & (profile > 0))  # its shadow
+    assert np.all(star[:5] <= 1.0001 * profile)  # pings far from it see only seabed
 
 
 def test_osmesa_backend_option(tmp_path):
@@ -64,10 +68,18 @@ def test_help_is_instant_and_lists_commands():
     for word in ("render", "scenes", "doctor"):
         assert word in result.stdout
     # --help must not import the heavy modules.
-    probe = subprocess.run([sys.executable, "-c", "import sys, sonar_raster.cli as c\n"
-                            "try:\n    c.main(['--help'])\nexcept SystemExit:\n    pass\n"
-                            "print(sorted(m for m in ('moderngl', 'trimesh', 'OpenImageIO')"
-                            " if m in sys.modules))"], capture_output=True, text=True)
+    probe = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import sys, sonar_raster.cli as c\n"
+            "try:\n    c.main(['--help'])\nexcept SystemExit:\n    pass\n"
+            "print(sorted(m for m in ('moderngl', 'trimesh', 'OpenImageIO')"
+            " if m in sys.modules))",
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert probe.stdout.strip().endswith("[]")
 
 

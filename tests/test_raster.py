@@ -27,7 +27,7 @@ def test_flat_seabed_follows_closed_form(gl, flat_scene, beam, split):
     traj = Trajectory.straight((0.0, -2.0, altitude), 0.0, spacing, 12)
     gl.settings = RasterSettings(split=split)
     image = gl.render(flat_scene, sonar, traj)
-    first = int(math.ceil(altitude / sonar.range_bin)) + 1   # bins fully beyond nadir
+    first = int(math.ceil(altitude / sonar.range_bin)) + 1  # bins fully beyond nadir
     for side in ("port", "starboard"):
         expected = flat_seabed_profile(sonar, altitude, 0.5, spacing, side=side)
         got = image.sides[side].astype(np.float64)
@@ -51,13 +51,16 @@ def test_nearest_split_is_worse_than_footprint(gl, flat_scene):
     assert errors["nearest"] > 5 * errors["footprint"]
 
 
-@pytest.mark.parametrize("height,ground_range,altitude", [(1.0, 20.0, 10.0), (2.0, 15.0, 6.0),
-                                                          (0.5, 30.0, 12.0)])
+@pytest.mark.parametrize(
+    "height,ground_range,altitude", [(1.0, 20.0, 10.0), (2.0, 15.0, 6.0), (0.5, 30.0, 12.0)]
+)
 def test_shadow_length(gl, height, ground_range, altitude):
     """Ground shadow of a box behind its far top edge is H x / (h - H) within one bin."""
     depth = 0.6
     near = ground_range - depth
-    scene = build_scene([plane(300.0), box((near + depth / 2, 0.0, height / 2), (depth, 6.0, height))])
+    scene = build_scene(
+        [plane(300.0), box((near + depth / 2, 0.0, height / 2), (depth, 6.0, height))]
+    )
     sonar = Sonar(max_range=60.0, range_bin=0.05, sides=("starboard",))
     traj = Trajectory.straight((0.0, -0.5, altitude), 0.0, 0.1, 11)
     row = gl.render(scene, sonar, traj).sides["starboard"][5].astype(np.float64)
@@ -69,7 +72,7 @@ def test_shadow_length(gl, height, ground_range, altitude):
     k1 = int(math.hypot(ground_range + expected, altitude) / sonar.range_bin) + 40
     dark = np.nonzero(row[k0:k1] == 0.0)[0]
     assert len(dark) > 0, "no shadow"
-    r_end = (k0 + dark[-1] + 1) * sonar.range_bin          # first lit bin after the shadow
+    r_end = (k0 + dark[-1] + 1) * sonar.range_bin  # first lit bin after the shadow
     assert np.all(row[k0 + dark[-1] + 1 : k1] > 0)
     measured = math.sqrt(r_end**2 - altitude**2) - ground_range
     ground_per_bin = sonar.range_bin * r_end / math.sqrt(r_end**2 - altitude**2)
@@ -83,8 +86,9 @@ def test_survey_coordinates_keep_precision(gl):
     traj = Trajectory.straight((0.0, -3.0, 9.0), 30.0, 0.1, 60)
     near = gl.render(build_scene(parts), sonar, traj)
     offset = np.array([500_000.0, 4_500_000.0, 0.0])
-    far_parts = [MeshPart(p.vertices + offset, p.faces, p.reflectivity, p.name, p.is_seabed)
-                 for p in parts]
+    far_parts = [
+        MeshPart(p.vertices + offset, p.faces, p.reflectivity, p.name, p.is_seabed) for p in parts
+    ]
     far_traj = Trajectory(traj.positions + offset, traj.headings, traj.roll)
     far = gl.render(build_scene(far_parts), sonar, far_traj)
     for side in sonar.sides:
@@ -126,7 +130,7 @@ def test_stationary_sonar_repeats_one_row(gl, flat_scene):
 def test_degenerate_triangles_are_dropped(gl, caplog):
     base = plane(120.0)
     v = np.vstack([base.vertices, [[5.0, 5.0, 0.0], [6.0, 6.0, 0.0], [7.0, 7.0, 0.0]]])
-    f = np.vstack([base.faces, [[4, 5, 6], [0, 0, 1], [4, 4, 4]]])   # collinear, repeated
+    f = np.vstack([base.faces, [[4, 5, 6], [0, 0, 1], [4, 4, 4]]])  # collinear, repeated
     with caplog.at_level("WARNING"):
         dirty = build_scene([MeshPart(v, f, 0.5, "seabed", True)])
     assert dirty.n_triangles == 2 and "dropped 3" in caplog.text
