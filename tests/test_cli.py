@@ -149,3 +149,13 @@ def test_existing_output_survives_a_failed_render(tmp_path):
     out.write_bytes(b"precious")
     code = main(["render", str(tmp_path / "missing.toml"), "-o", str(out)])
     assert code == 2 and out.read_bytes() == b"precious"
+
+
+def test_reference_renderer_option_agrees_with_gl(tmp_path):
+    gl, ref = tmp_path / "gl.exr", tmp_path / "ref.exr"
+    common = ["flat_calibration", "--pings", "4", "--side", "starboard", "-q"]
+    assert main(["render", *common, "-o", str(gl)]) == 0
+    assert main(["render", *common, "-o", str(ref), "--renderer", "reference"]) == 0
+    a = read_exr(gl)[0]["starboard"].astype(np.float64)
+    b = read_exr(ref)[0]["starboard"].astype(np.float64)
+    assert np.abs(a - b).sum() / b.sum() < 0.005

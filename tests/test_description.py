@@ -1,0 +1,162 @@
+"""Scene description files: every table, overrides, and errors that name the problem."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from sonar_raster.description import Overrides, load_scene_file
+from sonar_raster.errors import SonarRasterError
+from sonar_raster.glcontext import create_context, requested_backends
+
+
+def write(tmp_path, text: str, name: str = "scene.toml"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_full_description(tmp_path):
+    (tmp_path / "beam.csv").write_text("angle_deg,value\n-90,0.1\n0,1.0\n90,0.1\n")
+    (tmp_path / "track.csv").write_text("x,y,z,heading_deg,roll_deg\n0,0,12,90,0\n0.2,0,12,90,1\n")
+    np.save(tmp_path / "depth.npy", np.full((11, 21), -2.0))
+    path = write(
+        tmp_path,
+        """
+[sonar]
+frequency_hz = 200e3
+max_range = 25.0
+range_bin = 0.1
+tilt_deg = 10.0
+beam = { kind = "table", path = "beam.csv" }
+sides = ["port"]
+
+[seabed]
+kind = "grid"
+path = "depth.npy"
+resolution = 1.0
+reflectivity = 0.4
+
+[[objects]]
+primitive = "box"
+size = [2.0, 1.0, 0.5]
+position = [5.0, 5.0]
+reflectivity = 0.8
+name = "crate"
+
+[[objects]]
+primitive = "sphere"
+radius = 0.5
+position = [15.0, 5.0, 3.0]
+
+[trajectory]
+csv = "track.csv"
+""",
+    )
+    setup = load_scene_file(path)
+    assert setup.sonar.sides == ("port",) and setup.sonar.n_bins == 250
+    assert setup.sonar.tilt == pytest.approx(math.radians(10))
+    assert setup.sonar.beam(0.0) == pytest.approx(1.0)
+    assert setup.sonar.beam(math.radians(45)) == pytest.approx(0.55)
+    scene = setup.scene
+    assert scene.names == ("seabed", "crate", "sphere")
+    assert scene.ground_z == pytest.approx(-2.0)
+    crate = scene.vertices[np.unique(scene.faces[scene.object_id == 1])]
+    assert crate[:, 2].min() == pytest.approx(-2.0) and crate[:, 2].max() == pytest.approx(-1.5)
+    assert np.allclose(crate[:, :2].mean(axis=0), [5.0, 5.0])
+    sphere = scene.vertices[np.unique(scene.faces[scene.object_id == 2])]
+    assert np.allclose(sphere.mean(axis=0), [15.0, 5.0, 3.0], atol=1e-6)
+    refl = {
+        n: float(scene.reflectivity[scene.object_id == k][0]) for k, n in enumerate(scene.names)
+    }
+    assert refl == {"seabed": 0.4, "crate": 0.8, "sphere": 0.9}
+    traj = setup.trajectory
+    assert traj.n_pings == 2 and traj.roll[1] == pytest.approx(math.radians(1))
+    assert setup.altitude == pytest.approx(14.0)
+
+
+def test_overrides_and_straight_track(tmp_path):
+    path = write(
+        tmp_path,
+        """
+[sonar]
+max_range = 30.0
+[seabed]
+kind = "flat"
+size = [80.0, 20.0]
+depth = -5.0
+[trajectory]
+altitude = 7.0
+heading_deg = 90.0
+spacing = 0.5
+pings = 10
+""",
+    )
+    setup = load_scene_file(
+        path, Overrides(max_range=40.0, range_bin=0.2, altitude=9.0, pings=4, sides=("starboard",))
+    )
+    assert setup.sonar.max_range == 40.0 and setup.sonar.n_bins == 200
+    assert setup.sonar.sides == ("starboard",)
+    pos = setup.trajectory.positions
+    assert len(pos) == 4 and np.allclose(pos[:, 2], 4.0)  # -5 + 9
+    assert np.allclose(np.diff(pos[:, 0]), 0.5) and np.allclose(pos[:, 1], 0.0)  # heading east
+
+
+def test_y_up_models_are_turned_to_z_up(tmp_path):
+    (tmp_path / "pole.wrl").write_text(
+        "#VRML V2.0 utf8\nShape { geometry Box { size 0.2 3.0 0.2 } }\n"
+    )
+    setup = load_scene_file(
+        write(
+            tmp_path,
+            """
+[[objects]]
+file = "pole.wrl"
+position = [0.0, 0.0]
+""",
+        )
+    )
+    ext = np.ptp(setup.scene.vertices, axis=0)
+    assert ext[2] == pytest.approx(3.0) and ext[1] == pytest.approx(0.2)
+
+
+@pytest.mark.parametrize(
+    "text,needle",
+    [
+        ("[sonar]\nmax_rnage = 3\n[seabed]\nkind='flat'\n", "max_rnage"),
+        ("[seabed]\nkind = 'lava'\n", "lava"),
+        ("[seabed]\nkind = 'flat'\nwidth = 3\n", "width"),
+        ("[[objects]]\nprimitive = 'torus'\n", "torus"),
+        ("[[objects]]\nposition = [1, 2]\n", "file"),
+        ("[[objects]]\nprimitive = 'box'\nposition = [1]\n", "position"),
+        ("[seabed]\nkind='flat'\n[trajectory]\naltitude = -3\n", "altitude"),
+        ("[seabed]\nkind='flat'\n[trajectory]\npings = 0\n", "ping"),
+        ("[sonar]\nbeam = { kind = 'laser' }\n", "laser"),
+        ("[sonar\n", "TOML"),
+        ("colour = 'red'\n[seabed]\nkind='flat'\n", "colour"),
+    ],
+)
+def test_errors_name_the_problem(tmp_path, text, needle):
+    with pytest.raises(SonarRasterError) as info:
+        load_scene_file(write(tmp_path, text))
+    assert needle in str(info.value)
+    assert "\n" not in str(info.value)
+
+
+def test_unknown_backend_and_missing_libraries(monkeypatch):
+    with pytest.raises(SonarRasterError, match="unknown GL backend"):
+        requested_backends("vulkan")
+    monkeypatch.setenv("SONAR_RASTER_GL", "osmesa")
+    assert requested_backends(None) == ("osmesa",)
+    assert requested_backends("egl") == ("egl",)
+
+    def fail(name):
+        raise RuntimeError(f"{name} library not found")
+
+    monkeypatch.setattr("sonar_raster.glcontext._create", fail)
+    with pytest.raises(SonarRasterError) as info:
+        create_context(None)
+    message = str(info.value)
+    assert "libegl1" in message and "libosmesa6" in message and "osmesa library" in message
