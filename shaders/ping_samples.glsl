@@ -9,22 +9,14 @@
 #endif
 
 #if defined VERTEX_SHADER
+// Per vertex (shared by the triangles around it): segment-frame coordinates, look angle and
+// the clip position (column from the warped angle, row from the along-track position, depth
+// from the slant range).
 in vec3 in_pos;                 // local coordinates (metres, scene local origin subtracted)
 uniform vec3 seg_origin;        // segment origin, local coordinates
 uniform vec3 axis_along;
 uniform vec3 axis_side;         // starboard or port unit vector
 uniform vec3 axis_up;
-out vec3 v_q;                   // (along, side, up) coordinates relative to the segment origin
-void main() {
-    vec3 d = in_pos - seg_origin;
-    v_q = vec3(dot(d, axis_along), dot(d, axis_side), dot(d, axis_up));
-}
-#endif
-
-#if defined GEOMETRY_SHADER
-layout(triangles) in;
-layout(triangle_strip, max_vertices = 3) out;
-in vec3 v_q[];
 uniform float warp_h;           // nominal altitude of the range warp, metres
 uniform float warp_c;           // near-nadir floor of the warp slope (fraction of warp_h)
 uniform float alpha0;           // asin(warp_h / max_range): where the linear extension starts
@@ -35,12 +27,8 @@ uniform float rho_hi;           // warp value at the last column edge (alpha_min
 uniform float row_scale;        // 2 / (spacing * pings)  (clip units per metre along track)
 uniform float row_offset;       // clip y of along-track coordinate 0
 uniform float far_range;        // slant range mapped to depth 1
-uniform float alpha_span_max;   // triangles spanning more angle than this are culled (wrap)
-uniform float frame_sign;       // det of the (along, side, up) frame: fixes the normal's sign
-layout(std430, binding = 0) readonly buffer FaceData { float face_refl[]; };
-flat out vec4 g_plane;          // unit normal (xyz, segment frame) and offset n.q
-flat out float g_refl;
-out vec3 g_q;
+out vec3 v_q;                   // (along, side, up) coordinates relative to the segment origin
+out float v_alpha;              // depression angle in (-pi/2, 3pi/2]
 
 float warp(float a) {
     // Pseudo slant range: h / sin(a) + c h (pi/2 - a) between alpha0 and nadir, continued
@@ -52,28 +40,46 @@ float warp(float a) {
 }
 
 void main() {
+    vec3 d = in_pos - seg_origin;
+    vec3 q = vec3(dot(d, axis_along), dot(d, axis_side), dot(d, axis_up));
+    // The wrap of the angle is straight up, outside any beam.
+    float a = atan(-q.z, q.y);
+    if (a < -1.5707963267948966) a += 6.283185307179586;
+    v_q = q;
+    v_alpha = a;
+    gl_Position = vec4(2.0 * (warp(a) - rho_lo) / (rho_hi - rho_lo) - 1.0,
+                       q.x * row_scale + row_offset,
+                       2.0 * length(q.yz) / far_range - 1.0, 1.0);
+}
+#endif
+
+#if defined GEOMETRY_SHADER
+// Per triangle: the plane (exact normal from the corners), the face's reflectivity, and the
+// cull of triangles that wrap around the sonar.
+layout(triangles) in;
+layout(triangle_strip, max_vertices = 3) out;
+in vec3 v_q[];
+in float v_alpha[];
+uniform float alpha_span_max;   // triangles spanning more angle than this are culled (wrap)
+uniform float frame_sign;       // det of the (along, side, up) frame: fixes the normal's sign
+layout(std430, binding = 0) readonly buffer FaceData { float face_refl[]; };
+flat out vec4 g_plane;          // unit normal (xyz, segment frame) and offset n.q
+flat out float g_refl;
+out vec3 g_q;
+
+void main() {
+    float amin = min(v_alpha[0], min(v_alpha[1], v_alpha[2]));
+    float amax = max(v_alpha[0], max(v_alpha[1], v_alpha[2]));
+    if (amax - amin > alpha_span_max) return;
     vec3 n = frame_sign * cross(v_q[1] - v_q[0], v_q[2] - v_q[0]);
     float len = length(n);
     if (len <= 0.0) return;
     n /= len;
-    float a[3];
-    float amin = 10.0, amax = -10.0;
+    float refl = face_refl[gl_PrimitiveIDIn];
     for (int i = 0; i < 3; ++i) {
-        // Depression angle in (-pi/2, 3pi/2]: the wrap is straight up, outside any beam.
-        float ai = atan(-v_q[i].z, v_q[i].y);
-        if (ai < -1.5707963267948966) ai += 6.283185307179586;
-        a[i] = ai;
-        amin = min(amin, ai);
-        amax = max(amax, ai);
-    }
-    if (amax - amin > alpha_span_max) return;
-    for (int i = 0; i < 3; ++i) {
-        float x = 2.0 * (warp(a[i]) - rho_lo) / (rho_hi - rho_lo) - 1.0;
-        float y = v_q[i].x * row_scale + row_offset;
-        float z = 2.0 * length(v_q[i].yz) / far_range - 1.0;
-        gl_Position = vec4(x, y, z, 1.0);
+        gl_Position = gl_in[i].gl_Position;
         g_plane = vec4(n, dot(n, v_q[0]));
-        g_refl = face_refl[gl_PrimitiveIDIn];
+        g_refl = refl;
         g_q = v_q[i];
         EmitVertex();
     }

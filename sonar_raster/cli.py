@@ -100,7 +100,14 @@ def _parser() -> argparse.ArgumentParser:
         "--oversample",
         type=_positive(float),
         default=None,
-        help="look-angle samples per range bin (GL renderer, default 4)",
+        help="look-angle samples per range bin (GL renderer, default 2)",
+    )
+    render.add_argument(
+        "--along-samples",
+        type=_positive(int),
+        default=None,
+        metavar="N",
+        help="rays per ping along track (GL renderer, default 4)",
     )
     render.add_argument("--bits", type=int, choices=(8, 16), default=8, help="PNG bit depth")
     render.add_argument(
@@ -157,7 +164,10 @@ def _render(args: argparse.Namespace) -> int:
     else:
         from .raster import RasterSettings, render_raster
 
-        settings = RasterSettings(oversample=args.oversample or RasterSettings.oversample)
+        settings = RasterSettings(
+            oversample=args.oversample or RasterSettings.oversample,
+            along_samples=args.along_samples or RasterSettings.along_samples,
+        )
         image = render_raster(
             setup.scene,
             setup.sonar,

@@ -57,8 +57,8 @@ class RasterSettings:
         Floor of the warp's slope near nadir, as a fraction of the altitude (see ``_warp``).
     """
 
-    oversample: float = 4.0
-    along_samples: int = 2
+    oversample: float = 2.0
+    along_samples: int = 4
     split: str = "footprint"
     max_edge: float | None = None
     near_nadir: float = 1.0
