@@ -96,8 +96,10 @@ uniform float spacing;          // metres between pings (0 for a stationary sona
 uniform float rows_per_ping;
 uniform float row_width;        // along-track width of one row, metres
 uniform float far_range;
-// (slant range where the column's near and far edge rays meet the plane, weight): the sample
-// covers that range interval, so pass 2 can spread it over the bins it overlaps.
+// (centre range, range width from the look-angle extent, range width from the along-track
+// extent, weight): the ray bundle of the sample covers an (angle x along-track) patch of the
+// plane whose ranges are spread like the sum of two uniform variables of those widths, so
+// pass 2 can share the weight among the bins the patch overlaps.
 layout(location = 0) out vec4 out_sample;
 
 float scattering_over_cos(float cos_t) {
@@ -122,18 +124,18 @@ void main() {
     float cos_t = -dot(g_plane.xyz, dir);
     float t = hit(origin, col.x);
     if (!(t > 0.0)) t = length(g_q - origin);   // grazing or back face: range of the fragment
-    float w = 0.0;
-    float t0 = t, t1 = t;
+    vec4 s = vec4(t, 0.0, 0.0, 0.0);
     if (cos_t > 0.0) {
-        w = g_refl * scattering_over_cos(cos_t) * t * col.y * row_width;
         float ta = hit(origin, col.x - col.z);
         float tb = hit(origin, col.x + col.z);
-        t0 = ta > 0.0 ? min(ta, tb > 0.0 ? tb : ta) : t;
-        t1 = ta > 0.0 ? max(ta, tb > 0.0 ? tb : ta) : t;
-        t0 = min(t0, t);
-        t1 = max(t1, t);
+        float lo = min(t, min(ta > 0.0 ? ta : t, tb > 0.0 ? tb : t));
+        float hi = max(t, max(ta, tb));
+        // Range is linear in the along-track position on a plane: dt/dy = -n.x / (n . dir).
+        float along = abs(g_plane.x / cos_t) * row_width;
+        float w = g_refl * scattering_over_cos(cos_t) * t * col.y * row_width;
+        s = vec4(0.5 * (lo + hi), hi - lo, along, w);
     }
-    out_sample = vec4(t0, t1, w, 0.0);
+    out_sample = s;
     gl_FragDepth = clamp(t / far_range, 0.0, 1.0);
 }
 #endif

@@ -31,36 +31,55 @@ void deposit(int ping, int bin, float w) {
     if (old > 0xFFFFFFFFu - v) atomicAdd(cells[idx + 1u], 1u);
 }
 
+// Cumulative share of a sample below s (in bins, relative to the patch's lower end) for the
+// sum of two uniform spreads of widths wa >= wb (a trapezoid density of total width wa + wb).
+float trapezoid_cdf(float s, float wa, float wb) {
+    if (s <= 0.0) return 0.0;
+    if (s >= wa + wb) return 1.0;
+    if (wb < 1e-6) return s / wa;
+    if (s < wb) return s * s / (2.0 * wa * wb);
+    if (s <= wa) return (s - 0.5 * wb) / wa;
+    float u = wa + wb - s;
+    return 1.0 - u * u / (2.0 * wa * wb);
+}
+
 void main() {
     ivec2 p = ivec2(gl_GlobalInvocationID.xy);
     if (p.x >= size.x || p.y >= size.y) return;
     vec4 s = texelFetch(samples, p, 0);
-    float w = s.z;
+    float w = s.w;
     if (!(w > 0.0)) return;
     int ping = ping_offset + p.y / rows_per_ping;
+    float centre = s.x * inv_bin;
 #if SPLIT == 2
-    float a = s.x * inv_bin, b = s.y * inv_bin;
-    float mid = 0.5 * (a + b);
-    float half_width = min(0.5 * (b - a), 0.5 * float(MAX_SPREAD - 1));
-    a = mid - half_width;
-    b = mid + half_width;
-    if (b - a < 1e-4) {
-        deposit(ping, int(floor(mid)), w);
+    float wa = max(s.y, s.z) * inv_bin, wb = min(s.y, s.z) * inv_bin;
+    float total = wa + wb;
+    if (total > float(MAX_SPREAD - 1)) {      // grazing: keep the shape, bound the spread
+        float k = float(MAX_SPREAD - 1) / total;
+        wa *= k;
+        wb *= k;
+        total = wa + wb;
+    }
+    if (total < 1e-4) {
+        deposit(ping, int(floor(centre)), w);
         return;
     }
-    float inv = w / (b - a);
-    for (int k = int(floor(a)); float(k) < b; ++k) {
-        float overlap = min(b, float(k + 1)) - max(a, float(k));
-        deposit(ping, k, overlap * inv);
+    float lo = centre - 0.5 * total;
+    int first = int(floor(lo));
+    float before = 0.0;
+    for (int k = first; float(k) < lo + total; ++k) {
+        float after = trapezoid_cdf(float(k + 1) - lo, wa, wb);
+        deposit(ping, k, w * (after - before));
+        before = after;
     }
 #elif SPLIT == 1
-    float f = 0.5 * (s.x + s.y) * inv_bin - 0.5;
+    float f = centre - 0.5;
     float c = floor(f);
     float t = f - c;
     deposit(ping, int(c), w * (1.0 - t));
     deposit(ping, int(c) + 1, w * t);
 #else
-    deposit(ping, int(floor(0.5 * (s.x + s.y) * inv_bin)), w);
+    deposit(ping, int(floor(centre)), w);
 #endif
 }
 #endif

@@ -107,7 +107,7 @@ def _parser() -> argparse.ArgumentParser:
         type=_positive(int),
         default=None,
         metavar="N",
-        help="rays per ping along track (GL renderer, default 4)",
+        help="rays per ping along track (GL renderer, default 2)",
     )
     render.add_argument("--bits", type=int, choices=(8, 16), default=8, help="PNG bit depth")
     render.add_argument(

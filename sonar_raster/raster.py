@@ -58,7 +58,7 @@ class RasterSettings:
     """
 
     oversample: float = 2.0
-    along_samples: int = 4
+    along_samples: int = 2
     split: str = "footprint"
     max_edge: float | None = None
     near_nadir: float = 1.0
