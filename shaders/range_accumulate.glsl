@@ -24,7 +24,7 @@ uniform float scale;            // fixed-point units per weight unit
 
 void deposit(int ping, int bin, float w) {
     if (bin < 0 || bin >= n_bins) return;
-    uint v = uint(w * scale + 0.5);
+    uint v = uint(min(w * scale, 2147483648.0) + 0.5);  // the scale keeps it below 2^31
     if (v == 0u) return;
     uint idx = 2u * uint(ping * n_bins + bin);
     uint old = atomicAdd(cells[idx], v);

@@ -106,6 +106,7 @@ class RasterRenderer:
         self.ctx, self.backend = create_context(backend)
         self._programs: dict[str, Any] = {}
         self._scene_key: tuple | None = None
+        self._scene: Scene | None = None  # the uploaded scene (held, so its id cannot be reused)
         self._geometry: dict[str, Any] = {}
         self._targets: dict[str, Any] = {}
 
@@ -163,10 +164,11 @@ class RasterRenderer:
                 obj.release()
         self._geometry.clear()
         self._scene_key = None
+        self._scene = None
 
     def _upload(self, scene: Scene, origin: np.ndarray, max_edge: float) -> None:
-        key = (id(scene), tuple(origin), max_edge)
-        if key == self._scene_key:
+        key = (tuple(origin), max_edge)
+        if self._scene is scene and key == self._scene_key:
             return
         self._release_geometry()
         vertices = scene.vertices - origin  # float64 shift, then float32
@@ -202,6 +204,7 @@ class RasterRenderer:
             "r_max": float(refl.max(initial=0.0)),
         }
         self._scene_key = key
+        self._scene = scene
 
     def _release_targets(self) -> None:
         for obj in self._targets.values():
@@ -293,9 +296,8 @@ class RasterRenderer:
         max_edge = self.settings.max_edge or 20.0 * sonar.range_bin
         self._upload(scene, origin, max_edge)
         draws = self._plan(scene, sonar, trajectory)
-        self._max_range = sonar.max_range
         tables = [self._column_tables(d, sonar) for d in draws]
-        scale = self._fixed_point_scale(draws, tables)
+        scale = self._fixed_point_scale(draws, tables, sonar.max_range, sonar.range_bin)
         n_pings, n_bins = trajectory.n_pings, sonar.n_bins
         cells = {side: self.ctx.buffer(reserve=n_pings * n_bins * 8) for side in sonar.sides}
         for buf in cells.values():
@@ -333,13 +335,20 @@ class RasterRenderer:
             out.append((first, count, total, table.astype("f4")))
         return out
 
-    def _fixed_point_scale(self, draws: list[_Draw], tables: list) -> float:
+    def _fixed_point_scale(
+        self, draws: list[_Draw], tables: list, max_range: float, range_bin: float
+    ) -> float:
+        """Fixed-point units per weight unit: the largest possible sample weight maps to 2^30.
+
+        Only samples whose spread reaches the image are deposited, so their range is below the
+        maximum range plus half the largest spread (``MAX_SPREAD`` = 16 bins in the shader).
+        """
+        reach = max_range + 16.0 * range_bin
         bound = 0.0
         for draw, tiles in zip(draws, tables, strict=True):
             phid = max(float(t[3][:, 1].max()) for t in tiles)
             row_width = draw.segment.width / self.settings.along_samples
-            # Only samples inside the image (slant range <= max range) are deposited.
-            bound = max(bound, self._geometry["r_max"] * phid * self._max_range * row_width)
+            bound = max(bound, self._geometry["r_max"] * phid * reach * row_width)
         return _FIXED_POINT_TOP / bound if bound > 0 else 1.0
 
     def _draw(
