@@ -20,7 +20,9 @@ from .trajectory import Trajectory
 
 __all__ = [
     "BeamPattern",
+    "HorizontalBeam",
     "MeshPart",
+    "Pulse",
     "RasterRenderer",
     "RasterSettings",
     "Scene",
@@ -30,12 +32,18 @@ __all__ = [
     "Trajectory",
     "build_scene",
     "load_scene_file",
+    "render_coherent",
     "render_raster",
     "render_reference",
+    "to_raster_units",
     "write_image",
 ]
 
 _LAZY = {
+    "HorizontalBeam": "coherent",
+    "Pulse": "coherent",
+    "render_coherent": "coherent",
+    "to_raster_units": "coherent",
     "RasterRenderer": "raster",
     "RasterSettings": "raster",
     "render_raster": "raster",

@@ -157,13 +157,14 @@ def generate(
     seed : int
         Seed of the jitter hash.
     """
-    p0 = (surface.tri[:, 0] - origin) @ axes.T
-    e1 = (surface.tri[:, 1] - surface.tri[:, 0]) @ axes.T
-    e2 = (surface.tri[:, 2] - surface.tri[:, 0]) @ axes.T
+    p0 = _rotate(surface.tri[:, 0] - origin, axes)
+    e1 = _rotate(surface.tri[:, 1] - surface.tri[:, 0], axes)
+    e2 = _rotate(surface.tri[:, 2] - surface.tri[:, 0], axes)
     proj = np.stack([p0, e1, e2], axis=2)
     ids = np.flatnonzero(_overlaps(proj, bounds))
     if len(ids) == 0:
         return
+    normal = _rotate(surface.normal, axes)
     rows = np.cumsum(surface.n_sub[ids])
     starts = np.searchsorted(rows, np.arange(0, rows[-1], _ROW_BLOCK), side="right")
     for lo, hi in zip(starts, [*starts[1:], len(ids)], strict=True):
@@ -172,7 +173,7 @@ def generate(
         block = ids[lo:hi]
         runs = _row_runs(proj[block], surface.n_sub[block], bounds)
         for part in _chunks(runs, chunk):
-            yield _expand(surface, block, part, axes, jitter, seed)
+            yield _expand(surface, normal, block, part, axes, jitter, seed)
 
 
 def _row_runs(proj: np.ndarray, n_sub: np.ndarray, bounds: np.ndarray) -> _Runs:
@@ -223,8 +224,14 @@ def _chunks(runs: _Runs, size: int) -> Iterator[_Runs]:
             yield _Runs(*(getattr(runs, f)[lo:hi] for f in _RUN_FIELDS))
 
 
+def _rotate(v: np.ndarray, axes: np.ndarray) -> np.ndarray:
+    """Components of vectors ``v`` (k, 3) along the rows of ``axes`` (no BLAS: tiny inner size)."""
+    return np.einsum("kj,cj->kc", v, axes)
+
+
 def _expand(
     surface: ScatterSurface,
+    normal: np.ndarray,
     block: np.ndarray,
     runs: _Runs,
     axes: np.ndarray,
@@ -240,12 +247,12 @@ def _expand(
     position = nominal
     if jitter > 0:
         cell = runs.i[run] * n + j
-        position = nominal + (jitter * _gaussian3(face, cell, seed)) @ axes.T
+        position = nominal + _rotate(jitter * _gaussian3(face, cell, seed), axes)
     return Scatterers(
         face=face,
         nominal=nominal,
         position=position,
-        normal=surface.normal[face] @ axes.T,
+        normal=normal[face],
         facet_area=surface.facet_area[face],
         reflectivity=surface.reflectivity[face],
     )

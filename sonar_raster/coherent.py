@@ -35,6 +35,7 @@ import logging
 import math
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -220,6 +221,7 @@ def render_coherent(
     jitter_wavelengths: float = 0.5,
     scattering: str = "lambert",
     samples_per_bin: int | None = None,
+    progress: bool = False,
 ) -> SonarImage:
     """Render raw side-scan intensity with the coherent point-scatterer model (Eq. 10).
 
@@ -252,13 +254,15 @@ def render_coherent(
         Scattering law of the amplitude (module docstring).
     samples_per_bin : int, optional
         Fine delay samples per range bin (default: four times the band's Nyquist rate, >= 4).
+    progress : bool
+        Show a progress bar over the ping blocks.
 
     Returns
     -------
     SonarImage
         float32 (pings, ``sonar.n_bins``) per side: bin-averaged matched-filter envelope power,
         with spreading (∝ r⁻⁴), in Eq. 10 units (see :func:`to_raster_units`). ``metadata``:
-        renderer "coherent", settings, ``n_scatterers`` (generated inside reach),
+        renderer "coherent", settings, ``n_scatterers`` (inside reach, summed over ping blocks),
         ``n_rays``, ``n_visible``, ``n_pairs`` (scatterer-ping terms), ``facet_area_m2``,
         ``peak_memory_bytes`` (estimate), ``time_s``.
 
@@ -283,35 +287,40 @@ def render_coherent(
         raise SonarRasterError(f"chunk must be a positive integer, got {chunk!r}")
     start = time.perf_counter()
     grid = _grid(sonar, pulse, samples_per_bin)
-    model = _model(sonar, beam_h, scattering)
     local = scene.bounds.mean(axis=0)
     surface = scatter_surface(scene, local, spacing)
-    caster = _ray_caster(scene.vertices - local, scene.faces)
-    ray_surface = _Surface(surface.tri, surface.normal, surface.n_sub, surface.facet_area)
     sides = tuple(s for s in SIDES if s in sonar.sides)
+    work = _Work(
+        surface=surface,
+        caster=_ray_caster(scene.vertices - local, scene.faces),
+        ray_surface=_Surface(surface.tri, surface.normal, surface.n_sub, surface.facet_area),
+        grid=grid,
+        model=_model(sonar, beam_h, scattering),
+        sides=sides,
+        jitter=jitter,
+        seed=int(seed),
+        chunk=int(chunk),
+        method=method,
+    )
     out = {side: np.zeros((trajectory.n_pings, sonar.n_bins)) for side in sides}
     stats = _Stats()
     block = max(1, _BLOCK_BYTES // grid.nbytes(len(sides)))
-    tol = sonar.range_bin / 4.0
-    for segment in trajectory.segments(tol):
+    blocks = []
+    for segment in trajectory.segments(sonar.range_bin / 4.0):
         frame = _frame(segment, trajectory, local, spacing)
         sl = slice(segment.first, segment.first + segment.count)
         pings = (trajectory.positions[sl] - local - frame.origin) @ frame.axes.T
         for j0 in range(0, segment.count, block):
             j1 = min(segment.count, j0 + block)
-            acc = grid.accumulator((j1 - j0) * len(sides), method)
-            bounds, off = _block_bounds(model, pings[j0:j1], sides, jitter)
-            for sc in generate(surface, frame.axes, frame.origin, bounds, int(chunk), jitter, seed):
-                sc = _cull(sc, model, sides, jitter + off, stats)
-                if len(sc.face) == 0:
-                    continue
-                sc = _visible_only(sc, caster, ray_surface, frame, stats)
-                row, x, c = _pairs(sc, pings[j0:j1], frame.roll[j0:j1], sides, model, grid, off)
-                stats.pairs += len(row)
-                grid.add(acc, row, x, c)
-            power = grid.intensity(acc).reshape(j1 - j0, len(sides), sonar.n_bins)
-            for slot, side in enumerate(sides):
-                out[side][segment.first + j0 : segment.first + j1] = power[:, slot]
+            blocks.append((frame, segment.first + j0, pings[j0:j1], frame.roll[j0:j1]))
+    if progress:
+        from tqdm import tqdm
+
+        blocks = tqdm(blocks, desc="coherent", unit="block", disable=None, leave=False)
+    for frame, first, pings, roll in blocks:
+        power = _render_block(work, frame, pings, roll, stats)
+        for slot, side in enumerate(sides):
+            out[side][first : first + len(pings)] = power[:, slot]
     elapsed = time.perf_counter() - start
     log.info(
         "coherent: %d scatterers, %d visible, %d pairs in %.2f s (%.3g scatterers/s)",
@@ -341,7 +350,7 @@ def render_coherent(
         "n_visible": stats.visible,
         "n_pairs": stats.pairs,
         "peak_memory_bytes": _memory_estimate(
-            surface, grid, len(sides), block, int(chunk), model, trajectory
+            surface, grid, len(sides), block, int(chunk), work.model, trajectory
         ),
         "time_s": elapsed,
         "units": "Eq. 10 intensity |sum a^2/lambda ...|^2 with 1/r^4 spreading (to_raster_units)",
@@ -362,6 +371,47 @@ class _Stats:
     def facet_area(self) -> float:
         """Area-weighted mean facet area of the visible scatterers, m² (0 if none)."""
         return self.area2 / self.area if self.area > 0 else 0.0
+
+
+@dataclass(frozen=True)
+class _Work:
+    """Everything a ping block needs besides its pings."""
+
+    surface: ScatterSurface
+    caster: Any
+    ray_surface: Any
+    grid: EchoGrid
+    model: _Model
+    sides: tuple[str, ...]
+    jitter: float
+    seed: int
+    chunk: int
+    method: str
+
+
+def _render_block(
+    work: _Work, frame: Any, pings: np.ndarray, roll: np.ndarray, stats: _Stats
+) -> np.ndarray:
+    """Intensity of a block of pings of one segment, shape (pings, sides, bins).
+
+    ``pings`` are the block's ping positions in the segment frame, ``roll`` their roll angles.
+    Scatterers are generated only inside the block's reach, culled, ray-tested, and their
+    terms for every ping of the block deposited on the block's fine grid.
+    """
+    grid, sides = work.grid, work.sides
+    acc = grid.accumulator(len(pings) * len(sides), work.method)
+    bounds, off = _block_bounds(work.model, pings, sides, work.jitter)
+    for sc in generate(
+        work.surface, frame.axes, frame.origin, bounds, work.chunk, work.jitter, work.seed
+    ):
+        sc = _cull(sc, work.model, sides, JITTER_CLIP * math.sqrt(3.0) * work.jitter + off, stats)
+        if len(sc.face) == 0:
+            continue
+        sc = _visible_only(sc, work.caster, work.ray_surface, frame, stats)
+        row, x, c = _pairs(sc, pings, roll, sides, work.model, grid, off)
+        stats.pairs += len(row)
+        grid.add(acc, row, x, c)
+    return grid.intensity(acc).reshape(len(pings), len(sides), grid.n_bins)
 
 
 def _check_settings(

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import sys
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -41,6 +41,8 @@ class SceneSetup:
     trajectory: Trajectory
     source: str
     altitude: float
+    pulse: Any = None  # coherent.Pulse from [pulse]; None: the default for the sonar
+    coherent: dict = field(default_factory=dict)  # render_coherent options from [coherent]
 
 
 @dataclass(frozen=True)
@@ -159,6 +161,58 @@ def _sonar(table: dict, base: Path, ov: Overrides, where: str) -> Sonar:
     if ov.sides is not None:
         changes["sides"] = ov.sides
     return replace(sonar, **changes) if changes else sonar
+
+
+# -- coherent model ----------------------------------------------------------------------------
+def _pulse(table: dict, sonar: Sonar, where: str) -> Any:
+    """[pulse]: kind (lfm | cw), bandwidth_hz (lfm), duration_s, window; None when absent."""
+    if not table:
+        return None
+    from .coherent import Pulse
+
+    number = (int, float)
+    kind = _take(table, "kind", "lfm", str, where)
+    duration = _take(table, "duration_s", None, number, where)
+    if kind == "cw":
+        window = _take(table, "window", "none", str, where)
+        length = 2.0 * sonar.range_bin / sonar.sound_speed if duration is None else duration
+        pulse = Pulse.cw(float(length), window)
+    elif kind == "lfm":
+        window = _take(table, "window", "taylor", str, where)
+        default_band = sonar.sound_speed / (2.0 * sonar.range_bin)
+        band = float(_take(table, "bandwidth_hz", default_band, number, where))
+        pulse = Pulse.lfm(band, None if duration is None else float(duration), window)
+    else:
+        raise SonarRasterError(f"{where}: unknown pulse kind {kind!r}; use lfm or cw")
+    _no_leftovers(table, f"{where} [pulse]")
+    return pulse
+
+
+def _coherent(table: dict, where: str) -> dict:
+    """[coherent]: keyword options of ``render_coherent``."""
+    number = (int, float)
+    out: dict[str, Any] = {}
+    for key in ("spacing_wavelengths", "jitter_wavelengths"):
+        if key in table:
+            out[key] = float(_take(table, key, None, number, where))
+    if "seed" in table:
+        out["seed"] = _take(table, "seed", 0, int, where)
+    if "scattering" in table:
+        out["scattering"] = _take(table, "scattering", "lambert", str, where)
+    beam = table.pop("horizontal_beam", None)
+    if beam is not None:
+        if not isinstance(beam, dict) or "width_deg" not in beam:
+            raise SonarRasterError(
+                f"{where}: horizontal_beam must be a table like {{ width_deg = 0.5 }}"
+            )
+        from .coherent import HorizontalBeam
+
+        beam = dict(beam)
+        width = math.radians(float(_take(beam, "width_deg", None, number, where)))
+        out["horizontal_beam"] = HorizontalBeam(width, _take(beam, "kind", "gaussian", str, where))
+        _no_leftovers(beam, f"{where} [coherent] horizontal_beam")
+    _no_leftovers(table, f"{where} [coherent]")
+    return out
 
 
 # -- seabed and objects ------------------------------------------------------------------------
@@ -300,13 +354,16 @@ def _from_description(path: Path, ov: Overrides) -> SceneSetup:
     parts = [sea[1]] if sea else []
     for k, spec in enumerate(objects):
         parts.extend(_object(spec, base, sea[0] if sea else None, k))
-    unknown = set(data) - {"name", "description", "sonar", "seabed", "objects", "trajectory"}
+    known = {"name", "description", "sonar", "seabed", "objects", "trajectory", "pulse", "coherent"}
+    unknown = set(data) - known
     if unknown:
         raise SonarRasterError(f"{where}: unknown top-level key(s) {', '.join(sorted(unknown))}")
     scene = build_scene(parts)
     ground = scene.ground_z if sea else 0.0
     traj, altitude = _trajectory(_table(data, "trajectory", where), ground, base, ov, where)
-    return SceneSetup(scene, sonar, traj, str(path), altitude)
+    pulse = _pulse(_table(data, "pulse", where), sonar, where)
+    coherent = _coherent(_table(data, "coherent", where), where)
+    return SceneSetup(scene, sonar, traj, str(path), altitude, pulse, coherent)
 
 
 def _from_model(path: Path, ov: Overrides) -> SceneSetup:

@@ -159,3 +159,13 @@ def test_reference_renderer_option_agrees_with_gl(tmp_path):
     a = read_exr(gl)[0]["starboard"].astype(np.float64)
     b = read_exr(ref)[0]["starboard"].astype(np.float64)
     assert np.abs(a - b).sum() / b.sum() < 0.005
+
+
+def test_coherent_model(tmp_path):
+    out = tmp_path / "c.exr"
+    args = ["render", "flat_calibration", "-o", str(out), "--model", "coherent", "--pings", "4"]
+    assert main([*args, "--spacing", "8", "--seed", "2", "--side", "starboard", "-q"]) == 0
+    sides, _ = read_exr(out)
+    meta = json.loads((tmp_path / "c.json").read_text())
+    assert meta["metadata"]["renderer"] == "coherent" and meta["metadata"]["seed"] == 2
+    assert sides["starboard"].shape == (4, 600) and sides["starboard"].max() > 0

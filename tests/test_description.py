@@ -160,3 +160,24 @@ def test_unknown_backend_and_missing_libraries(monkeypatch):
         create_context(None)
     message = str(info.value)
     assert "libegl1" in message and "libosmesa6" in message and "osmesa library" in message
+
+
+def test_pulse_and_coherent_tables(tmp_path):
+    base = '[sonar]\nrange_bin = 0.05\n[seabed]\nkind = "flat"\nsize = 20.0\n'
+    setup = load_scene_file(write(tmp_path, base))
+    assert setup.pulse is None and setup.coherent == {}
+    text = base + (
+        '[pulse]\nkind = "lfm"\nduration_s = 0.004\nwindow = "hann"\n'
+        "[coherent]\nspacing_wavelengths = 2\nseed = 4\n"
+        'horizontal_beam = { width_deg = 0.5, kind = "sinc" }\n'
+    )
+    setup = load_scene_file(write(tmp_path, text))
+    assert setup.pulse.bandwidth_hz == pytest.approx(15e3)  # c / (2 range_bin)
+    assert (setup.pulse.duration_s, setup.pulse.window) == (0.004, "hann")
+    assert setup.coherent["spacing_wavelengths"] == 2.0 and setup.coherent["seed"] == 4
+    assert setup.coherent["horizontal_beam"].width == pytest.approx(math.radians(0.5))
+    cw = load_scene_file(write(tmp_path, base + '[pulse]\nkind = "cw"\n'))
+    assert cw.pulse.kind == "cw" and cw.pulse.resolution() == pytest.approx(0.05)
+    for bad in ('[pulse]\nkind = "fm"\n', "[coherent]\nspacing = 1\n", '[pulse]\nwindow = "x"\n'):
+        with pytest.raises(SonarRasterError):
+            load_scene_file(write(tmp_path, base + bad))
