@@ -14,6 +14,7 @@
 #if defined COMPUTE_SHADER
 layout(local_size_x = 64, local_size_y = 4) in;
 layout(binding = 0) uniform sampler2D samples;
+uniform sampler2D depth;        // pass 1's depth: 1 where no fragment landed (colour is stale)
 layout(std430, binding = 1) buffer Cells { uint cells[]; };   // (ping, bin, {lo, hi})
 uniform ivec2 size;             // framebuffer width (columns), height (rows)
 uniform int rows_per_ping;
@@ -46,6 +47,7 @@ float trapezoid_cdf(float s, float wa, float wb) {
 void main() {
     ivec2 p = ivec2(gl_GlobalInvocationID.xy);
     if (p.x >= size.x || p.y >= size.y) return;
+    if (texelFetch(depth, p, 0).r >= 1.0) return;
     vec4 s = texelFetch(samples, p, 0);
     float w = s.w;
     if (!(w > 0.0)) return;

@@ -31,11 +31,12 @@ class Warp:
         """Warp for a sonar ``altitude`` above the nominal seabed.
 
         ``alpha_top`` is the smallest depression angle at which scene geometry may appear within
-        ``max_range`` (from the top of the scene); columns start a little above it.
+        reach of the image (from the top of the scene); columns start just above it (0.05°, for
+        rounding), so no column looks where nothing can be imaged.
         """
         h = min(max(altitude, 0.02 * max_range), 0.95 * max_range)
         alpha0 = math.asin(h / max_range)
-        alpha_min = max(min(alpha0, alpha_top) - math.radians(2.0), -HALF_PI + 0.05)
+        alpha_min = max(min(alpha0, alpha_top) - math.radians(0.05), -HALF_PI + 0.05)
         return cls(h=h, c=c, alpha0=alpha0, alpha_min=alpha_min)
 
     @property

@@ -160,7 +160,7 @@ class RasterRenderer:
     # -- geometry ---------------------------------------------------------------------------
     def _release_geometry(self) -> None:
         for obj in self._geometry.values():
-            if hasattr(obj, "release"):
+            if hasattr(obj, "release") and not isinstance(obj, np.ndarray):
                 obj.release()
         self._geometry.clear()
         self._scene_key = None
@@ -196,6 +196,10 @@ class RasterRenderer:
             index_element_size=4,
         )
         self._geometry = {
+            "vertices": vertices,
+            "faces_cpu": faces,
+            "refl_cpu": refl,
+            "max_edge": max_edge,
             "vbo": vbo,
             "ibo": ibo,
             "faces": face_buf,
@@ -211,16 +215,21 @@ class RasterRenderer:
             obj.release()
         self._targets.clear()
 
-    def _framebuffer(self, width: int, height: int) -> tuple[Any, Any]:
-        """The (framebuffer, sample texture) of this size, reused across draws."""
-        if not self._targets or self._targets["color"].size != (width, height):
-            color = self.ctx.texture((width, height), 4, dtype="f4")
-            depth = self.ctx.depth_texture((width, height))
-            fbo = self.ctx.framebuffer([color], depth)
-            fbo.use()  # bind the new one first: releasing a bound framebuffer upsets moderngl
-            self._release_targets()
-            self._targets = {"fbo": fbo, "color": color, "depth": depth}
-        return self._targets["fbo"], self._targets["color"]
+    def _framebuffer(self, width: int, height: int) -> dict[str, Any]:
+        """Sample targets at least this size, reused across draws (each draws in a viewport)."""
+        if self._targets:
+            old_w, old_h = self._targets["color"].size
+            if old_w >= width and old_h >= height:
+                return self._targets
+            width, height = max(width, old_w), max(height, old_h)
+        color = self.ctx.texture((width, height), 4, dtype="f4")
+        depth = self.ctx.depth_texture((width, height))
+        depth.compare_func = ""  # pass 2 reads the depth itself: < 1 where a fragment landed
+        fbo = self.ctx.framebuffer([color], depth)
+        fbo.use()  # bind the new one first: releasing a bound framebuffer upsets moderngl
+        self._release_targets()
+        self._targets = {"fbo": fbo, "color": color, "depth": depth}
+        return self._targets
 
     # -- planning ---------------------------------------------------------------------------
     def _plan(self, scene: Scene, sonar: Sonar, trajectory: Trajectory) -> list[_Draw]:
@@ -234,7 +243,10 @@ class RasterRenderer:
         for seg in trajectory.segments(tol, max_count=max(1, max_rows)):
             roll = float(np.mean(trajectory.roll[seg.first : seg.first + seg.count]))
             altitude = float(seg.origin[2] - scene.ground_z)
-            alpha_top = math.atan2(float(seg.origin[2]) - z_top, sonar.max_range)
+            # Nothing above z_top within the image's reach (max range plus the largest spread
+            # of a sample, 8 bins) lies at a smaller depression than this.
+            reach = sonar.max_range + 8.0 * sonar.range_bin
+            alpha_top = math.asin(min(1.0, max(-1.0, (float(seg.origin[2]) - z_top) / reach)))
             warp = Warp.make(altitude, sonar.max_range, alpha_top, self.settings.near_nadir)
             stationary = seg.spacing == 0.0
             for side in sonar.sides:
@@ -293,12 +305,17 @@ class RasterRenderer:
             float32 (pings × bins) per side; see :class:`SonarImage` for units.
         """
         origin = trajectory.positions[0].copy()
+        self._origin = origin
         max_edge = self.settings.max_edge or 20.0 * sonar.range_bin
         self._upload(scene, origin, max_edge)
         draws = self._plan(scene, sonar, trajectory)
         tables = [self._column_tables(d, sonar) for d in draws]
         scale = self._fixed_point_scale(draws, tables, sonar.max_range, sonar.range_bin)
         n_pings, n_bins = trajectory.n_pings, sonar.n_bins
+        self._framebuffer(
+            max(t[1] for tiles in tables for t in tiles),
+            max(d.rows for d in draws) * self.settings.along_samples,
+        )
         cells = {side: self.ctx.buffer(reserve=n_pings * n_bins * 8) for side in sonar.sides}
         for buf in cells.values():
             buf.clear()
@@ -309,7 +326,11 @@ class RasterRenderer:
 
                 items = tqdm(items, desc="rendering", unit="draw", disable=None, leave=False)
             for draw, table in items:
-                self._draw(draw, table, origin, sonar, scale, cells[draw.side])
+                geometry = self._geometry_for(draw, sonar)
+                try:
+                    self._draw(draw, table, origin, sonar, scale, cells[draw.side], geometry)
+                finally:
+                    self._release_subset(geometry)
             sides = {s: self._read(cells[s], draws, scale, n_pings, n_bins, s) for s in sonar.sides}
         finally:
             for buf in cells.values():
@@ -352,7 +373,14 @@ class RasterRenderer:
         return _FIXED_POINT_TOP / bound if bound > 0 else 1.0
 
     def _draw(
-        self, draw: _Draw, tiles: list, origin: np.ndarray, sonar: Sonar, scale: float, cells: Any
+        self,
+        draw: _Draw,
+        tiles: list,
+        origin: np.ndarray,
+        sonar: Sonar,
+        scale: float,
+        cells: Any,
+        geometry: dict[str, Any],
     ) -> None:
         ctx = self.ctx
         seg = draw.segment
@@ -385,24 +413,34 @@ class RasterRenderer:
         for name, value in uniforms.items():
             if name in prog:
                 prog[name].value = value
-        self._geometry["faces"].bind_to_storage_buffer(0)
+        geometry["faces"].bind_to_storage_buffer(0)
         ctx.enable_direct(_GL_DEPTH_CLAMP)
+        targets = self._targets
+        fbo = targets["fbo"]
         for first, count, total, table in tiles:
             d_rho = (rho_hi_all - rho_lo_all) / total
             prog["rho_lo"].value = rho_lo_all + first * d_rho
             prog["rho_hi"].value = rho_lo_all + (first + count) * d_rho
             col_tex = ctx.texture((count, 1), 4, table.tobytes(), dtype="f4")
-            fbo, target = self._framebuffer(count, height)
             try:
                 fbo.use()
-                fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+                fbo.viewport = (0, 0, count, height)
+                # Clear the depth only: pass 2 skips texels whose depth stayed at 1, so stale
+                # colour from an earlier draw is never read (and the colour clear is saved).
+                fbo.color_mask = (False, False, False, False)
+                fbo.use()  # moderngl applies the colour mask when the framebuffer is bound
+                fbo.clear(depth=1.0, viewport=(0, 0, count, height))
+                fbo.color_mask = (True, True, True, True)
+                fbo.use()
                 ctx.enable(ctx.DEPTH_TEST)
                 col_tex.use(location=1)
                 prog["columns"].value = 1
-                self._geometry["vao"].render(mode=ctx.TRIANGLES)
-                target.use(location=0)
+                geometry["vao"].render(mode=ctx.TRIANGLES)
+                targets["color"].use(location=0)
+                targets["depth"].use(location=2)
                 cells.bind_to_storage_buffer(1)
                 comp["samples"].value = 0
+                comp["depth"].value = 2
                 comp["size"].value = (count, height)
                 comp["rows_per_ping"].value = along
                 comp["ping_offset"].value = seg.first
@@ -413,6 +451,50 @@ class RasterRenderer:
                 ctx.memory_barrier()
             finally:
                 col_tex.release()
+
+    # -- culling ----------------------------------------------------------------------------
+    def _geometry_for(self, draw: _Draw, sonar: Sonar) -> dict[str, Any]:
+        """The uploaded scene, or only its triangles that can reach this draw's image.
+
+        A triangle is kept when one of its corners lies within the subdivision edge length of
+        the segment's along-track window, of the maximum range from the track, and of the
+        draw's side. Culling pays on long tracks and large scenes; when half the scene or more
+        is near, the whole scene is drawn and nothing is uploaded.
+        """
+        geo = self._geometry
+        seg = draw.segment
+        v, f = geo["vertices"], geo["faces_cpu"]
+        rel = v - (seg.origin - self._origin)
+        # Vertex tests, widened by the longest edge, so a triangle whose corners are all outside
+        # but which crosses the window is still kept.
+        margin = geo["max_edge"]
+        t = _dot(rel, seg.along)
+        t_hi = (seg.count - 1) * seg.spacing + 0.5 * seg.width + margin
+        near = (t >= -0.5 * seg.width - margin) & (t <= t_hi)
+        reach = sonar.max_range + 8.0 * sonar.range_bin + margin
+        side = _dot(rel, draw.axis_side)
+        near &= (side >= -margin) & (np.hypot(side, _dot(rel, seg.up)) <= reach)
+        if near.mean() > 0.5:
+            return geo
+        keep = near[f].any(axis=1)
+        ids = np.flatnonzero(keep)
+        ibo = self.ctx.buffer(f[ids].astype("u4").tobytes() or b"\0" * 12)
+        faces = self.ctx.buffer(geo["refl_cpu"][ids].astype("f4").tobytes() or b"\0" * 4)
+        vao = self.ctx.vertex_array(
+            self._program("samples"),
+            [(geo["vbo"], "3f", "in_pos")],
+            index_buffer=ibo,
+            index_element_size=4,
+        )
+        if len(ids) == 0:
+            vao.vertices = 0
+        return {"ibo": ibo, "faces": faces, "vao": vao, "subset": True}
+
+    @staticmethod
+    def _release_subset(geometry: dict[str, Any]) -> None:
+        if geometry.get("subset"):
+            for key in ("vao", "ibo", "faces"):
+                geometry[key].release()
 
     def _read(
         self, cells: Any, draws: list[_Draw], scale: float, n_pings: int, n_bins: int, side: str
@@ -425,6 +507,11 @@ class RasterRenderer:
             if draw.side == side and draw.rows == 1 and seg.count > 1:
                 image[seg.first + 1 : seg.first + seg.count] = image[seg.first]
         return image
+
+
+def _dot(points: np.ndarray, axis: np.ndarray) -> np.ndarray:
+    """Row-wise dot product of (n, 3) points with one axis (elementwise: BLAS is slower here)."""
+    return points[:, 0] * axis[0] + points[:, 1] * axis[1] + points[:, 2] * axis[2]
 
 
 def render_raster(

@@ -179,3 +179,19 @@ def test_along_track_slope_is_integrated_over_the_ping_width(gl):
         errors[along] = rel_l1(gl.render(scene, sonar, traj).sides["starboard"], ref)
     gl.settings = RasterSettings()
     assert errors[1] < 0.005 and errors[8] < 0.005, errors
+
+
+def test_reused_renderer_matches_a_fresh_one(gl):
+    """Targets are reused between renders (depth-only clears): nothing stale leaks through."""
+    from sonar_raster.raster import RasterRenderer
+
+    busy = build_scene([plane(120.0), box((12.0, 1.0, 1.0), (1.0, 3.0, 2.0))])
+    sparse = build_scene([plane(30.0, center=(0.0, 0.0))])
+    sonar = Sonar(max_range=30.0, range_bin=0.05)
+    traj = Trajectory.straight((0.0, 0.0, 10.0), 0.0, 0.2, 12)
+    gl.render(busy, sonar, traj)
+    again = gl.render(sparse, sonar, traj)
+    with RasterRenderer("egl") as fresh:
+        first = fresh.render(sparse, sonar, traj)
+    for side in sonar.sides:
+        assert np.array_equal(again.sides[side], first.sides[side])
