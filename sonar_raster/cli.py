@@ -130,9 +130,10 @@ def _parser() -> argparse.ArgumentParser:
     render.add_argument(
         "--dynamic-range",
         type=_positive(float),
-        default=60.0,
+        default=None,
         metavar="DB",
-        help="PNG display range in dB below the reference level (default 60)",
+        help="PNG display range in dB below the reference level (default: the image's span, "
+        "6 to 60 dB)",
     )
     render.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
 

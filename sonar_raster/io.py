@@ -85,12 +85,33 @@ def display_mapping(
     return codes, float(ref)
 
 
+#: Bounds of the automatic display range, dB.
+AUTO_RANGE_DB = (6.0, 60.0)
+
+
+def auto_dynamic_range(intensity: np.ndarray, ref: float | None = None) -> float:
+    """Display range that spans the image: from its 1st percentile of nonzero values to ``ref``.
+
+    Raw images carry no spreading loss or gain, so their span is often only 10–20 dB; a fixed
+    60 dB window would show them washed out. The result is rounded to 0.1 dB and bounded by
+    :data:`AUTO_RANGE_DB`; ``ref`` defaults as in :func:`display_mapping`.
+    """
+    values = np.asarray(intensity, dtype=np.float64)
+    positive = values[values > 0]
+    if positive.size == 0:
+        return AUTO_RANGE_DB[1]
+    top = float(np.percentile(positive, 99.5)) if ref is None else ref
+    low = float(np.percentile(positive, 1.0))
+    span = 10.0 * math.log10(top / low) if low > 0 and top > low else AUTO_RANGE_DB[0]
+    return round(min(max(span, AUTO_RANGE_DB[0]), AUTO_RANGE_DB[1]), 1)
+
+
 def write_image(
     image: SonarImage,
     path: str | os.PathLike,
     *,
     bit_depth: int = 8,
-    dynamic_range_db: float = 60.0,
+    dynamic_range_db: float | None = None,
     sidecar: bool = True,
 ) -> list[Path]:
     """Write a sonar image as linear EXR or display PNG, plus a JSON sidecar.
@@ -109,8 +130,9 @@ def write_image(
         Output file, ending in .exr or .png; its directory must exist.
     bit_depth : int
         8 or 16, grey levels of the PNG (ignored for EXR).
-    dynamic_range_db : float
-        Decibel span of the display mapping (PNG, and recorded in the sidecar).
+    dynamic_range_db : float, optional
+        Decibel span of the display mapping (PNG, and recorded in the sidecar); None spans the
+        image (:func:`auto_dynamic_range`).
     sidecar : bool
         Also write the JSON sidecar.
 
@@ -131,6 +153,8 @@ def write_image(
     sides = _checked_sides(image)
     _check_directory(path)
     display = SonarImage(sides, image.sonar).display()
+    if dynamic_range_db is None:
+        dynamic_range_db = auto_dynamic_range(display)
     codes, ref = display_mapping(display, dynamic_range_db)
     mapping = {
         "ref_level_m2": ref,

@@ -186,7 +186,7 @@ def test_png_known_intensities_give_known_codes(tmp_path):
     port[0, 0], port[0, 1], port[0, 2] = 0.0, 1.0, 1e-6  # DR = 60 dB below 1.0 is 1e-6
     port[1:, :] = 1.0  # makes the 99.5th percentile exactly 1.0
     image = SonarImage({"port": port}, Sonar(sides=("port",), max_range=BINS * 0.05))
-    io.write_image(image, tmp_path / "k.png", bit_depth=16, sidecar=False)
+    io.write_image(image, tmp_path / "k.png", bit_depth=16, sidecar=False, dynamic_range_db=60.0)
     pixels, spec, attrs = read_png(tmp_path / "k.png")
     assert pixels.dtype == np.uint16 and spec.format == oiio.UINT16
     assert float(attrs["sonar:display_ref_level_m2"]) == 1.0
@@ -353,3 +353,13 @@ def test_overwrite_replaces_existing_file(tmp_path):
 def test_read_exr_missing_file(tmp_path):
     with pytest.raises(SonarRasterError, match="cannot read"):
         io.read_exr(tmp_path / "nope.exr")
+
+
+def test_auto_dynamic_range_spans_the_image():
+    values = np.geomspace(1e-3, 1.0, 1001)  # 30 dB from the weakest to the strongest
+    values[::7] = 0.0  # zeros (shadow) are ignored
+    dr = io.auto_dynamic_range(values)
+    assert 28.0 < dr < 30.0
+    assert io.auto_dynamic_range(np.full(10, 2.0)) == io.AUTO_RANGE_DB[0]
+    assert io.auto_dynamic_range(np.zeros(10)) == io.AUTO_RANGE_DB[1]
+    assert io.auto_dynamic_range(np.geomspace(1e-12, 1.0, 1000)) == io.AUTO_RANGE_DB[1]
