@@ -19,11 +19,24 @@ def _pattern(n: int) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(tris, dtype=np.float64) / n, np.asarray(n)
 
 
-def subdivision_counts(tri: np.ndarray, max_edge: float) -> np.ndarray:
-    """Pieces per edge for each triangle of ``tri`` (m, 3, 3): ceil(longest edge / max_edge)."""
-    edges = np.stack([tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 1], tri[:, 0] - tri[:, 2]], axis=1)
-    longest = np.sqrt(np.einsum("mkj,mkj->mk", edges, edges).max(axis=1))
-    return np.maximum(1, np.ceil(longest / max_edge)).astype(np.int64)
+def subdivision_counts(vertices: np.ndarray, faces: np.ndarray, max_edge: float) -> np.ndarray:
+    """Pieces per edge for each face: ceil(longest edge / max_edge), at least 1.
+
+    Parameters
+    ----------
+    vertices : ndarray, shape (n, 3)
+    faces : ndarray, shape (m, 3), int
+    max_edge : float
+        Longest edge allowed after subdivision, metres.
+    """
+    corners = [vertices[faces[:, k]] for k in range(3)]
+    longest2 = np.zeros(len(faces))
+    for a, b in ((0, 1), (1, 2), (2, 0)):
+        d = corners[b] - corners[a]
+        np.maximum(
+            longest2, d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2], out=longest2
+        )
+    return np.maximum(1, np.ceil(np.sqrt(longest2) / max_edge)).astype(np.int64)
 
 
 def subdivide(tri: np.ndarray, counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

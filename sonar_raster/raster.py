@@ -173,11 +173,10 @@ class RasterRenderer:
         self._release_geometry()
         vertices = scene.vertices - origin  # float64 shift, then float32
         faces, refl = scene.faces, scene.reflectivity
-        tri = vertices[faces]
-        counts = subdivision_counts(tri, max_edge)
+        counts = subdivision_counts(vertices, faces, max_edge)
         big = counts > 1
         if big.any():
-            pieces, parent = subdivide(tri[big], counts[big])
+            pieces, parent = subdivide(vertices[faces[big]], counts[big])
             keep = faces[~big]
             extra = pieces.reshape(-1, 3)
             vertices = np.concatenate([vertices, extra])
