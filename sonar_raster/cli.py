@@ -1,4 +1,4 @@
-"""The ``sonar-raster`` command line: ``render``, ``scenes`` and ``doctor``.
+"""The ``sonar-raster`` command line: ``render``, ``invert``, ``scenes`` and ``doctor``.
 
 Heavy modules (moderngl, trimesh, OpenImageIO) load inside the commands, so ``--help``
 answers at once. Bad input ends with one line on stderr and exit status 2, with no traceback
@@ -137,9 +137,57 @@ def _parser() -> argparse.ArgumentParser:
     )
     render.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
 
+    _add_invert(sub)
     sub.add_parser("scenes", help="list the bundled scenes")
     sub.add_parser("doctor", help="show which GL backends start and the package versions")
     return parser
+
+
+def _add_invert(sub) -> None:
+    inv = sub.add_parser(
+        "invert",
+        help="recover reflectivity, beam profile and elevation from one image side",
+        description="Invert IMAGE (.npy, .exr or .png; rows = pings, columns = slant-range "
+        "bins from range 0; the renderer's EXR as is) into DIR/elevation.exr, "
+        "reflectivity.exr, beam.exr (rows = pings, columns = ground-range cells, NaN = no "
+        "estimate) and DIR/inversion.json.",
+    )
+    inv.add_argument("image", help="input image")
+    inv.add_argument("-o", "--output", required=True, metavar="DIR", help="output directory")
+    inv.add_argument(
+        "--range-bin",
+        type=_positive(float),
+        metavar="METRES",
+        help="slant-range bin size (read from a renderer EXR when omitted)",
+    )
+    inv.add_argument(
+        "--altitude",
+        type=_positive(float),
+        metavar="METRES",
+        help="sonar altitude (default: first bottom return of each ping)",
+    )
+    inv.add_argument("--side", choices=("port", "starboard"), help="which side of an EXR")
+    inv.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+
+
+def _invert(args: argparse.Namespace) -> int:
+    from ._invert_io import read_side, write_products
+    from .invert import invert
+
+    image, side, attrs = read_side(Path(args.image), args.side)
+    range_bin = args.range_bin or attrs.get("sonar:range_bin_m")
+    if not range_bin:
+        raise SonarRasterError("--range-bin is required for this image")
+    result = invert(image, float(range_bin), altitude=args.altitude, progress=not args.quiet)
+    written = write_products(result, Path(args.output), side, float(range_bin))
+    if not args.quiet:
+        for k, level in enumerate(result.energies):
+            print(
+                f"level {k + 1}: {len(level) - 1} iterations, E {level[0]:.4g} -> {level[-1]:.4g}"
+            )
+        for path in written:
+            print(f"wrote {path}")
+    return 0
 
 
 def _resolve_scene(name: str) -> Path:
@@ -287,6 +335,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.command == "render":
             return _render(args)
+        if args.command == "invert":
+            return _invert(args)
         if args.command == "scenes":
             return _scenes()
         return _doctor()

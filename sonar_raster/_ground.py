@@ -1,0 +1,139 @@
+"""First bottom return and the slant-range ↔ ground-range conversion of one side.
+
+Slant bin k covers ``[k, k + 1) * range_bin``; ground cell j has centre
+``x_j = (j + 1/2) * ground_bin``. Slant intensities are areas per bin (as the renderer's);
+ground intensities are densities per metre of ground range, so the conversion carries the
+flat-seabed Jacobian ``dr/dx = x / r``: ``G(x) = I(r) / range_bin * x / r``. Over a flat
+seabed rendered by :mod:`sonar_raster.raster`, ``G = w Φ R cos θ`` with ``w`` the ping width.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+
+from .errors import SonarRasterError
+
+#: Fraction of the way from the water-column floor to the bright seabed that marks the return.
+FIRST_RETURN_FRACTION = 0.05
+#: Water-column noise deviations (robust sigma) the return must also exceed.
+FIRST_RETURN_SIGMAS = 8.0
+#: Along-track median window (pings) applied to the detected altitudes.
+ALTITUDE_MEDIAN_PINGS = 9
+
+
+def first_return(slant: np.ndarray, range_bin: float) -> np.ndarray:
+    """Altitude of the sonar over the seabed per ping from the first bottom return.
+
+    Each ping is smoothed (Gaussian, 0.75 bins); the return is where it first rises above
+    ``floor + max(0.05 (p99 − floor), 8 σ)``, ``floor`` and ``σ`` the median and robust
+    deviation (1.4826 MAD) of the image's nearest 2 % of bins (the water column) and ``p99`` the
+    ping's 99th percentile, interpolated linearly between bin centres. The altitudes are then
+    median filtered over 9 pings, so a ping with a noisy water column or no return takes its
+    neighbours' value.
+
+    Parameters
+    ----------
+    slant : ndarray, shape (pings, bins)
+        Linear intensity, bins from range 0 outward.
+    range_bin : float
+        Slant-range bin size, metres.
+
+    Returns
+    -------
+    ndarray, shape (pings,), float64
+        Altitude, metres, > 0.
+
+    Raises
+    ------
+    SonarRasterError
+        If no ping shows a bottom return.
+    """
+    smooth = ndimage.gaussian_filter1d(np.asarray(slant, dtype=np.float64), 0.75, axis=1)
+    water = smooth[:, : max(1, smooth.shape[1] // 50)]
+    floor = float(np.median(water))
+    sigma = 1.4826 * float(np.median(np.abs(water - floor)))
+    top = np.percentile(smooth, 99.0, axis=1)
+    rise = np.maximum(FIRST_RETURN_FRACTION * (top - floor), FIRST_RETURN_SIGMAS * sigma)
+    threshold = floor + rise
+    above = (smooth > threshold[:, None]) & (top > floor)[:, None]
+    found = above.any(axis=1)
+    if not found.any():
+        raise SonarRasterError("no bottom return found in any ping; give --altitude")
+    k = np.argmax(above, axis=1)
+    prev = smooth[np.arange(len(k)), np.maximum(k - 1, 0)]
+    here = smooth[np.arange(len(k)), k]
+    step = here - prev
+    frac = np.where(step > 0, (threshold - prev) / np.where(step > 0, step, 1.0), 1.0)
+    alt = (k - 1 + np.clip(frac, 0.0, 1.0) + 0.5) * range_bin
+    alt = np.where(found, np.maximum(alt, 0.5 * range_bin), np.nan)
+    alt = np.where(found, alt, np.nanmedian(alt))
+    return ndimage.median_filter(alt, size=ALTITUDE_MEDIAN_PINGS, mode="nearest")
+
+
+def ground_axis(altitude: np.ndarray, range_bin: float, bins: int, ground_bin: float) -> np.ndarray:
+    """Ground cell centres reaching the farthest ground range any ping sees, shape (cells,)."""
+    reach = np.sqrt(max((bins * range_bin) ** 2 - float(np.min(altitude)) ** 2, 0.0))
+    cells = int(reach // ground_bin)
+    if cells < 2:
+        raise SonarRasterError(
+            f"altitude {np.min(altitude):g} m leaves fewer than 2 ground cells in "
+            f"{bins * range_bin:g} m of range"
+        )
+    return (np.arange(cells) + 0.5) * ground_bin
+
+
+def slant_to_ground(
+    slant: np.ndarray, range_bin: float, altitude: np.ndarray, x: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Resample a slant-range image onto ground cells over a flat seabed at the altitude.
+
+    Parameters
+    ----------
+    slant : ndarray, shape (pings, bins)
+        Intensity per slant bin.
+    range_bin : float
+        Slant bin size, metres.
+    altitude : ndarray, shape (pings,)
+        Sonar altitude per ping, metres.
+    x : ndarray, shape (cells,)
+        Ground cell centres, evenly spaced, metres.
+
+    Returns
+    -------
+    ground : ndarray, shape (pings, cells), float64
+        Intensity per metre of ground range (0 where invalid).
+    valid : ndarray, shape (pings, cells), bool
+        Cells whose slant range lies inside the image.
+    """
+    r = np.sqrt(x[None, :] ** 2 + altitude[:, None] ** 2)
+    pos = r / range_bin - 0.5
+    bins = slant.shape[1]
+    valid = r < bins * range_bin
+    k0 = np.clip(np.floor(pos).astype(np.int64), 0, bins - 1)
+    k1 = np.minimum(k0 + 1, bins - 1)
+    t = np.clip(pos - k0, 0.0, 1.0)
+    rows = np.arange(slant.shape[0])[:, None]
+    values = (1.0 - t) * slant[rows, k0] + t * slant[rows, k1]
+    ground = values / range_bin * (x[None, :] / r)
+    return np.where(valid, ground, 0.0), valid
+
+
+def ground_to_slant(
+    ground: np.ndarray, x: np.ndarray, altitude: np.ndarray, range_bin: float, bins: int
+) -> np.ndarray:
+    """Inverse of :func:`slant_to_ground`: intensity per slant bin, shape (pings, bins).
+
+    Bins nearer than the altitude (water column) and beyond the ground axis are 0. The
+    Jacobian ``r / x`` is evaluated at ``x >= dx / 2`` so nadir stays finite.
+    """
+    dx = float(x[1] - x[0])
+    r = (np.arange(bins) + 0.5) * range_bin
+    xs = np.sqrt(np.maximum(r[None, :] ** 2 - altitude[:, None] ** 2, 0.0))
+    out = np.empty((ground.shape[0], bins))
+    for i, row in enumerate(ground):
+        out[i] = np.interp(xs[i], x, row, left=row[0], right=0.0)
+    xs_safe = np.maximum(xs, 0.5 * dx)
+    out *= range_bin * (r[None, :] / xs_safe)
+    inside = (r[None, :] >= altitude[:, None]) & (xs <= x[-1] + 0.5 * dx)
+    return np.where(inside, out, 0.0)

