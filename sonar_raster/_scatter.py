@@ -4,7 +4,7 @@ Triangle ``f`` is cut into ``n_f²`` equal sub-triangles (facets) by uniform bar
 subdivision, ``n_f = max(1, ceil(max(sqrt(A_f) / s, longest edge / (2 s))))`` for a spacing
 ``s``: about one facet per ``s²`` of area (facet area ``a² = A_f / n_f² <= s²``, close to
 ``s²`` on triangles much larger than ``s``), with no facet edge longer than ``2 s``. Facets are
-indexed on an ``n × n`` square grid as in :mod:`sonar_raster.reference` (cell ``(i, j)`` is
+indexed on an ``n × n`` square grid as in :mod:`sonar_raster._patches` (cell ``(i, j)`` is
 upright for ``i + j <= n − 1`` with centroid barycentric ``((i + 1/3)/n, (j + 1/3)/n)``, else
 inverted with centroid ``(1 − (i + 1/3)/n, 1 − (j + 1/3)/n)``); the scatterer sits at the
 facet centroid moved by an isotropic Gaussian jitter (rms ``σ`` per axis, truncated at 4σ).
@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .reference import _clip_rows, _overlaps
+from ._patches import Runs, overlaps, project, runs_in_box
 from .scene import Scene
 
 #: Subdivision rows handled at once (bounds the per-row arrays to a few tens of MB).
@@ -113,22 +113,6 @@ class Scatterers:
 _FIELDS = ("face", "nominal", "position", "normal", "facet_area", "reflectivity")
 
 
-@dataclass(frozen=True)
-class _Runs:
-    """Runs of consecutive facets along subdivision rows (fixed triangle, row i and half).
-
-    ``tri`` indexes the surface; cells are ``(i, j)`` for ``j`` in ``lo .. lo + length − 1``;
-    the centroid of cell j is ``base + slope * j`` (frame coordinates).
-    """
-
-    tri: np.ndarray
-    i: np.ndarray
-    lo: np.ndarray
-    length: np.ndarray
-    base: np.ndarray
-    slope: np.ndarray
-
-
 def generate(
     surface: ScatterSurface,
     axes: np.ndarray,
@@ -157,71 +141,13 @@ def generate(
     seed : int
         Seed of the jitter hash.
     """
-    p0 = _rotate(surface.tri[:, 0] - origin, axes)
-    e1 = _rotate(surface.tri[:, 1] - surface.tri[:, 0], axes)
-    e2 = _rotate(surface.tri[:, 2] - surface.tri[:, 0], axes)
-    proj = np.stack([p0, e1, e2], axis=2)
-    ids = np.flatnonzero(_overlaps(proj, bounds))
+    proj = project(surface.tri, origin, axes, _rotate)
+    ids = np.flatnonzero(overlaps(proj, bounds))
     if len(ids) == 0:
         return
     normal = _rotate(surface.normal, axes)
-    rows = np.cumsum(surface.n_sub[ids])
-    starts = np.searchsorted(rows, np.arange(0, rows[-1], _ROW_BLOCK), side="right")
-    for lo, hi in zip(starts, [*starts[1:], len(ids)], strict=True):
-        if hi <= lo:
-            continue
-        block = ids[lo:hi]
-        runs = _row_runs(proj[block], surface.n_sub[block], bounds)
-        for part in _chunks(runs, chunk):
-            yield _expand(surface, normal, block, part, axes, jitter, seed)
-
-
-def _row_runs(proj: np.ndarray, n_sub: np.ndarray, bounds: np.ndarray) -> _Runs:
-    """Clip every subdivision row (both halves) of the triangles to ``bounds``."""
-    tri = np.repeat(np.arange(len(n_sub)), n_sub)
-    i = np.arange(len(tri)) - (np.cumsum(n_sub) - n_sub)[tri]
-    n = n_sub[tri].astype(np.float64)
-    p = proj[tri]
-    a = (i + 1.0 / 3.0) / n
-    third = 1.0 / (3.0 * n)
-    halves = (
-        # upright pieces: centroid (a, (j + 1/3) / n), j in [0, n - 1 - i]
-        (p[:, :, 1] * a[:, None] + p[:, :, 2] * third[:, None], 1.0, np.zeros_like(n), n - 1 - i),
-        # inverted pieces: centroid (1 - a, 1 - (j + 1/3) / n), j in [n - i, n - 1]
-        (p[:, :, 1] * (1 - a)[:, None] + p[:, :, 2] * (1 - third)[:, None], -1.0, n - i, n - 1),
-    )
-    parts = []
-    for offset, sign, j_min, j_max in halves:
-        base = p[:, :, 0] + offset
-        slope = sign * p[:, :, 2] / n[:, None]
-        lo, hi = _clip_rows(base, slope, bounds, j_min, j_max)
-        ok = hi >= lo
-        parts.append(
-            _Runs(
-                tri=tri[ok],
-                i=i[ok],
-                lo=lo[ok].astype(np.int64),
-                length=(hi - lo + 1)[ok].astype(np.int64),
-                base=base[ok],
-                slope=slope[ok],
-            )
-        )
-    return _Runs(*(np.concatenate([getattr(r, f) for r in parts]) for f in _RUN_FIELDS))
-
-
-_RUN_FIELDS = ("tri", "i", "lo", "length", "base", "slope")
-
-
-def _chunks(runs: _Runs, size: int) -> Iterator[_Runs]:
-    """Consecutive groups of whole runs with about ``size`` facets each."""
-    if len(runs.length) == 0:
-        return
-    ends = np.cumsum(runs.length)
-    cuts = np.searchsorted(ends, np.arange(size, ends[-1], size), side="left") + 1
-    edges = [0, *cuts.tolist(), len(ends)]
-    for lo, hi in zip(edges[:-1], edges[1:], strict=True):
-        if hi > lo:
-            yield _Runs(*(getattr(runs, f)[lo:hi] for f in _RUN_FIELDS))
+    for runs in runs_in_box(proj, surface.n_sub, ids, bounds, row_block=_ROW_BLOCK, chunk=chunk):
+        yield _expand(surface, normal, ids, runs, axes, jitter, seed)
 
 
 def _rotate(v: np.ndarray, axes: np.ndarray) -> np.ndarray:
@@ -232,17 +158,17 @@ def _rotate(v: np.ndarray, axes: np.ndarray) -> np.ndarray:
 def _expand(
     surface: ScatterSurface,
     normal: np.ndarray,
-    block: np.ndarray,
-    runs: _Runs,
+    ids: np.ndarray,
+    runs: Runs,
     axes: np.ndarray,
     jitter: float,
     seed: int,
 ) -> Scatterers:
-    """Materialise the facets of some runs as scatterers."""
-    run = np.repeat(np.arange(len(runs.length)), runs.length)
-    j = runs.lo[run] + (np.arange(len(run)) - (np.cumsum(runs.length) - runs.length)[run])
+    """Materialise the facets of some runs (``runs.tri`` indexes ``ids``) as scatterers."""
+    run, offset = runs.cells()
+    j = runs.lo[run] + offset
     nominal = runs.base[run] + runs.slope[run] * j[:, None].astype(np.float64)
-    face = block[runs.tri[run]]
+    face = ids[runs.tri[run]]
     n = surface.n_sub[face]
     position = nominal
     if jitter > 0:

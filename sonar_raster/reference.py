@@ -11,7 +11,7 @@ that moves continuously). A patch facing ``q``, inside the range window and not 
 
 Work is bounded in memory: patches are generated row by row of the subdivision grid, rows
 outside the segment's slab or beyond the maximum range are skipped analytically, and the rest
-is processed in fixed-size vectorised chunks.
+is processed in fixed-size vectorised chunks (see :mod:`sonar_raster._patches`).
 """
 
 from __future__ import annotations
@@ -19,11 +19,11 @@ from __future__ import annotations
 import logging
 import math
 import time
-from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
 
+from ._patches import Runs, overlaps, project, runs_in_box
 from .errors import SonarRasterError
 from .image import SonarImage
 from .scene import Scene
@@ -38,8 +38,6 @@ VISIBILITY_REL_TOL = 1e-4
 VISIBILITY_ABS_TOL = 1e-5
 #: Patches per vectorised chunk (bounds memory to a few hundred MB).
 _PATCH_CHUNK = 1 << 20
-#: Coordinate change (metres) below which a subdivision row counts as constant.
-_FLAT_ROW = 1e-9
 #: Subdivision-grid rows per block of triangles.
 _ROW_CHUNK = 1 << 19
 
@@ -127,45 +125,6 @@ class _Patches:
     coords: np.ndarray
     normal: np.ndarray
     edges: np.ndarray
-
-
-@dataclass(frozen=True)
-class _Runs:
-    """Runs of consecutive patches along subdivision rows.
-
-    Attributes
-    ----------
-    tri : ndarray, shape (q,), int64
-        Triangle of each run, as an index into the block it was made from.
-    length : ndarray, shape (q,), int64
-        Patches in the run, >= 1.
-    start : ndarray, shape (q, 3)
-        Centroid of the run's first patch in segment coordinates, metres.
-    step : ndarray, shape (q, 3)
-        Centroid offset from one patch of the run to the next, metres.
-    sign : ndarray, shape (q,)
-        +1 for upright pieces, -1 for inverted ones (their edges point the other way).
-    """
-
-    tri: np.ndarray
-    length: np.ndarray
-    start: np.ndarray
-    step: np.ndarray
-    sign: np.ndarray
-
-    def chunks(self, size: int) -> Iterator[_Runs]:
-        """Split into consecutive groups of whole runs with about ``size`` patches each."""
-        if len(self.length) == 0:
-            return
-        ends = np.cumsum(self.length)
-        cuts = np.searchsorted(ends, np.arange(size, ends[-1], size), side="left") + 1
-        edges = [0, *cuts.tolist(), len(ends)]
-        for lo, hi in zip(edges[:-1], edges[1:], strict=True):
-            if hi > lo:
-                yield _Runs(*(getattr(self, f)[lo:hi] for f in _RUN_FIELDS))
-
-
-_RUN_FIELDS = ("tri", "length", "start", "step", "sign")
 
 
 @dataclass
@@ -320,117 +279,33 @@ def _render_segment(
 ) -> None:
     """Add one segment's patches to ``acc`` (side -> (pings, bins) float64)."""
     bounds = _bounds(sonar, frame)
-    proj = _project(surface.tri, frame)
-    ids = np.flatnonzero(_overlaps(proj, bounds))
+    proj = project(surface.tri, frame.origin, frame.axes)
+    ids = np.flatnonzero(overlaps(proj, bounds))
     if len(ids) == 0:
         return
     normal = surface.normal[ids] @ frame.axes.T
-    rows = np.cumsum(surface.n_sub[ids])
-    block_starts = np.searchsorted(rows, np.arange(0, rows[-1], _ROW_CHUNK), side="right")
-    for lo, hi in zip(block_starts, [*block_starts[1:], len(ids)], strict=True):
-        if hi <= lo:
-            continue
-        runs = _row_runs(proj[ids[lo:hi]], surface.n_sub[ids[lo:hi]], bounds)
-        for chunk in runs.chunks(_PATCH_CHUNK):
-            run = np.repeat(np.arange(len(chunk.length)), chunk.length)
-            step = np.arange(len(run)) - (np.cumsum(chunk.length) - chunk.length)[run]
-            kept = lo + chunk.tri[run]
-            scale = chunk.sign[run] / surface.n_sub[ids[kept]]
-            patches = _Patches(
-                face=ids[kept],
-                coords=chunk.start[run] + chunk.step[run] * step[:, None],
-                normal=normal[kept],
-                edges=proj[ids[kept]][:, :, 1:] * scale[:, None, None],
-            )
-            _accumulate(surface, caster, sonar, frame, patches, acc, stats)
+    for runs in runs_in_box(
+        proj, surface.n_sub, ids, bounds, row_block=_ROW_CHUNK, chunk=_PATCH_CHUNK
+    ):
+        patches = _make_patches(runs, ids, proj, normal, surface.n_sub)
+        _accumulate(surface, caster, sonar, frame, patches, acc, stats)
 
 
-def _project(tri: np.ndarray, frame: _Frame) -> np.ndarray:
-    """Corner 0 and edges 1, 2 in segment coordinates, shape (m, 3 coords, 3 = p0, e1, e2)."""
-    axes = frame.axes
-    p0 = (tri[:, 0] - frame.origin) @ axes.T
-    e1 = (tri[:, 1] - tri[:, 0]) @ axes.T
-    e2 = (tri[:, 2] - tri[:, 0]) @ axes.T
-    return np.stack([p0, e1, e2], axis=2)
-
-
-def _overlaps(proj: np.ndarray, bounds: np.ndarray) -> np.ndarray:
-    """Triangles whose coordinate box meets ``bounds``, shape (m,) bool."""
-    corners = np.stack(
-        [proj[:, :, 0], proj[:, :, 0] + proj[:, :, 1], proj[:, :, 0] + proj[:, :, 2]], axis=2
+def _make_patches(
+    runs: Runs, ids: np.ndarray, proj: np.ndarray, normal: np.ndarray, n_sub: np.ndarray
+) -> _Patches:
+    """Materialise the patches of some runs (``runs.tri`` and ``normal`` index ``ids``)."""
+    run, offset = runs.cells()
+    kept = runs.tri[run]
+    face = ids[kept]
+    start = runs.base + runs.slope * runs.lo[:, None]
+    scale = runs.sign[run] / n_sub[face]
+    return _Patches(
+        face=face,
+        coords=start[run] + runs.slope[run] * offset[:, None],
+        normal=normal[kept],
+        edges=proj[face][:, :, 1:] * scale[:, None, None],
     )
-    lo, hi = corners.min(axis=2), corners.max(axis=2)
-    return np.all((hi >= bounds[:, 0]) & (lo <= bounds[:, 1]), axis=1)
-
-
-def _row_runs(proj: np.ndarray, n_sub: np.ndarray, bounds: np.ndarray) -> _Runs:
-    """Find the runs of patches per subdivision row that may lie inside ``bounds``.
-
-    The ``n²`` sub-triangles of a triangle are indexed on an n × n square grid (i, j):
-    cells with ``i + j <= n - 1`` are the upright pieces, with centroid barycentric
-    coordinates ``a = (i + 1/3) / n``, ``b = (j + 1/3) / n``; cells with ``i + j >= n`` are
-    the inverted pieces, with centroid ``(1 - a, 1 - b)``. Along a row (fixed i, one half) a
-    centroid is affine in j, so each bound gives a j interval (widened by one cell; the exact
-    per-patch test follows).
-
-    Parameters
-    ----------
-    proj : ndarray, shape (m, 3, 3)
-        Triangles from :func:`_project`.
-    n_sub : ndarray, shape (m,), int64
-        Subdivisions per edge.
-    bounds : ndarray, shape (3, 2)
-        Box in segment coordinates from :func:`_bounds`.
-    """
-    tri = np.repeat(np.arange(len(n_sub)), n_sub)
-    i = np.arange(len(tri)) - (np.cumsum(n_sub) - n_sub)[tri]
-    n = n_sub[tri].astype(np.float64)
-    p = proj[tri]
-    a = (i + 1.0 / 3.0) / n
-    third = 1.0 / (3.0 * n)
-    halves = (
-        # upright pieces: centroid (a, b), j in [0, n - 1 - i]
-        (p[:, :, 1] * a[:, None] + p[:, :, 2] * third[:, None], 1.0, np.zeros_like(n), n - 1 - i),
-        # inverted pieces: centroid (1 - a, 1 - b), j in [n - i, n - 1]
-        (p[:, :, 1] * (1 - a)[:, None] + p[:, :, 2] * (1 - third)[:, None], -1.0, n - i, n - 1),
-    )
-    parts = []
-    for offset, sign, j_min, j_max in halves:
-        base = p[:, :, 0] + offset
-        slope = sign * p[:, :, 2] / n[:, None]
-        lo, hi = _clip_rows(base, slope, bounds, j_min, j_max)
-        ok = hi >= lo
-        parts.append(
-            _Runs(
-                tri=tri[ok],
-                length=(hi - lo + 1)[ok].astype(np.int64),
-                start=base[ok] + slope[ok] * lo[ok, None],
-                step=slope[ok],
-                sign=np.full(int(ok.sum()), sign),
-            )
-        )
-    return _Runs(*(np.concatenate([getattr(r, f) for r in parts]) for f in _RUN_FIELDS))
-
-
-def _clip_rows(
-    base: np.ndarray, slope: np.ndarray, bounds: np.ndarray, j_min: np.ndarray, j_max: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Intersect [j_min, j_max] with ``lo_c <= base[:, c] + slope[:, c] j <= hi_c`` for each c."""
-    lo, hi = j_min.copy(), j_max.copy()
-    span = np.maximum(j_max, 0.0) + 2.0  # j runs from 0 (base) to at most j_max
-    for c in range(3):
-        b_lo, b_hi = bounds[c]
-        s = slope[:, c]
-        # a row whose coordinate moves less than a nanometre is constant along it
-        flat = np.abs(s) * span <= _FLAT_ROW
-        safe = np.where(flat, 1.0, s)
-        j1 = (b_lo - base[:, c]) / safe
-        j2 = (b_hi - base[:, c]) / safe
-        lo = np.where(flat, lo, np.maximum(lo, np.floor(np.minimum(j1, j2)) - 1.0))
-        hi = np.where(flat, hi, np.minimum(hi, np.ceil(np.maximum(j1, j2)) + 1.0))
-        outside = flat & ((base[:, c] < b_lo - _FLAT_ROW) | (base[:, c] > b_hi + _FLAT_ROW))
-        hi = np.where(outside, lo - 1.0, hi)
-    return lo, np.maximum(hi, lo - 1.0)
 
 
 def _accumulate(
