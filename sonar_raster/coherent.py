@@ -34,7 +34,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -201,6 +201,10 @@ class _Model:
     law: str
     wavelength: float
     r_limit: float
+    # With random phases (jitter > 0) echo energies add, so a facet's energy must grow with its
+    # area, not its area squared: amplitudes use sqrt(a_k * area_ref), area_ref = spacing².
+    # 0 keeps Eq. 10's a_k (smooth, coherent surfaces).
+    area_ref: float = 0.0
 
     @property
     def u_cut(self) -> float:
@@ -295,7 +299,9 @@ def render_coherent(
         caster=_ray_caster(scene.vertices - local, scene.faces),
         ray_surface=_Surface(surface.tri, surface.normal, surface.n_sub, surface.facet_area),
         grid=grid,
-        model=_model(sonar, beam_h, scattering),
+        model=replace(
+            _model(sonar, beam_h, scattering), area_ref=spacing**2 if jitter > 0 else 0.0
+        ),
         sides=sides,
         jitter=jitter,
         seed=int(seed),
@@ -344,7 +350,8 @@ def render_coherent(
         "wavelength_m": sonar.wavelength,
         "samples_per_bin": grid.samples_per_bin,
         "ping_width_m": trajectory.typical_spacing,
-        "facet_area_m2": stats.facet_area(),
+        # The a² that to_raster_units divides by: spacing² for random-phase scatterers.
+        "facet_area_m2": work.model.area_ref or stats.facet_area(),
         "n_scatterers": stats.scatterers,
         "n_rays": stats.rays,
         "n_visible": stats.visible,
@@ -575,7 +582,8 @@ def _amplitudes(
         gain = gain * beam(depression - model.sonar.tilt - sign * roll)
     cos_inc = np.where(ok, cos_inc, 0.0)
     law = np.sqrt(cos_inc) if model.law == "lambert" else cos_inc
-    amp = area[k] / model.wavelength * np.sqrt(gain) * law / (safe * safe)
+    size = np.sqrt(area[k] * model.area_ref) if model.area_ref > 0 else area[k]
+    amp = size / model.wavelength * np.sqrt(gain) * law / (safe * safe)
     c = amp * np.exp(-4j * math.pi / model.wavelength * r)
     return r, c, ok & (amp > 0)
 

@@ -226,8 +226,9 @@ def test_box_shadow_matches_the_reference():
     dark = np.flatnonzero(np.all(ref == 0, axis=0) & (np.arange(sonar.n_bins) > 60))
     assert len(dark) >= 8 and np.all(np.diff(dark) == 1)  # one shadow, 66..75
     lit = slice(dark[-1] + 2, sonar.n_bins)
-    # inside the shadow (off its edges by 2 bins: the compressed pulse) only sidelobes remain
-    assert coh[dark[2] : dark[-2]].mean() < 0.03 * coh[lit].mean()
+    # inside the shadow, away from the box's bright face (its range sidelobes reach a few bins
+    # in) and off the far edge by 2 bins (the compressed pulse), only weak sidelobes remain
+    assert coh[dark[len(dark) // 2] : dark[-2]].mean() < 0.03 * coh[lit].mean()
     assert coh[dark[-1] + 2 : dark[-1] + 12].mean() > 0.3 * coh[lit].mean()
 
 
