@@ -1,11 +1,13 @@
 """The GL renderer: scene + sonar + trajectory → raw side-scan intensity, on moderngl.
 
-Pass 1 (``shaders/ping_samples.glsl``) draws the whole scene once per straight track segment
-and side into a (ping row × look-angle column) float framebuffer: each texel is one ray of the
-fan, holding the exact slant range of its nearest hit and the weight ``Φ R r dα dy`` (Lambert).
-The depth test keeps the nearest hit, so objects shadow what lies behind them.
-Pass 2 (``shaders/range_accumulate.glsl``) adds the weights into (ping × range bin) cells with
-exact fixed-point integer atomics. Only this module knows OpenGL.
+Pass 1 (``shaders/ping_samples.glsl``) draws the scene once per straight track segment and
+side into a (ping row × look-angle column) float framebuffer: each texel is one ray of the fan,
+holding the slant range of its nearest hit (exact ray-plane intersection), the range spread of
+its ray bundle on that plane (across the column's angle and along the row's width) and the
+weight ``Φ R r dα dy`` (Lambert). The depth test keeps the nearest hit, so objects shadow what
+lies behind them. Pass 2 (``shaders/range_accumulate.glsl``) shares each weight among the range
+bins its spread overlaps, with exact fixed-point integer atomics. This module and
+:mod:`sonar_raster.glcontext` are the only ones that know OpenGL.
 """
 
 from __future__ import annotations
@@ -160,7 +162,7 @@ class RasterRenderer:
     # -- geometry ---------------------------------------------------------------------------
     def _release_geometry(self) -> None:
         for obj in self._geometry.values():
-            if hasattr(obj, "release") and not isinstance(obj, np.ndarray):
+            if hasattr(obj, "release"):
                 obj.release()
         self._geometry.clear()
         self._scene_key = None
@@ -304,7 +306,6 @@ class RasterRenderer:
             float32 (pings × bins) per side; see :class:`SonarImage` for units.
         """
         origin = trajectory.positions[0].copy()
-        self._origin = origin
         max_edge = self.settings.max_edge or 20.0 * sonar.range_bin
         self._upload(scene, origin, max_edge)
         draws = self._plan(scene, sonar, trajectory)
@@ -325,7 +326,7 @@ class RasterRenderer:
 
                 items = tqdm(items, desc="rendering", unit="draw", disable=None, leave=False)
             for draw, table in items:
-                geometry = self._geometry_for(draw, sonar)
+                geometry = self._geometry_for(draw, sonar, origin)
                 try:
                     self._draw(draw, table, origin, sonar, scale, cells[draw.side], geometry)
                 finally:
@@ -452,7 +453,7 @@ class RasterRenderer:
                 col_tex.release()
 
     # -- culling ----------------------------------------------------------------------------
-    def _geometry_for(self, draw: _Draw, sonar: Sonar) -> dict[str, Any]:
+    def _geometry_for(self, draw: _Draw, sonar: Sonar, origin: np.ndarray) -> dict[str, Any]:
         """The uploaded scene, or only its triangles that can reach this draw's image.
 
         A triangle is kept when one of its corners lies within the subdivision edge length of
@@ -463,7 +464,7 @@ class RasterRenderer:
         geo = self._geometry
         seg = draw.segment
         v, f = geo["vertices"], geo["faces_cpu"]
-        rel = v - (seg.origin - self._origin)
+        rel = v - (seg.origin - origin)
         # Vertex tests, widened by the longest edge, so a triangle whose corners are all outside
         # but which crosses the window is still kept.
         margin = geo["max_edge"]
