@@ -67,3 +67,24 @@ def box(center, size, reflectivity: float = 0.9, name: str = "box") -> MeshPart:
 @pytest.fixture()
 def flat_scene():
     return build_scene([plane(200.0)])
+
+
+@pytest.fixture()
+def strict_float():
+    """Raise on any floating-point overflow, division by zero or invalid operation."""
+    with np.errstate(all="raise"):
+        yield
+
+
+def rect_seabed(x0, x1, y0, y1, z=0.0, reflectivity=0.5) -> MeshPart:
+    """Axis-aligned flat rectangle of two triangles, normal +z."""
+    v = np.array([[x0, y0, z], [x1, y0, z], [x1, y1, z], [x0, y1, z]], dtype=float)
+    return MeshPart(v, np.array([[0, 1, 2], [0, 2, 3]]), reflectivity, "seabed", True)
+
+
+def box_from_bounds(bounds, reflectivity=0.8, name="box") -> MeshPart:
+    """A closed box with outward faces spanning ``bounds`` = [[min xyz], [max xyz]]."""
+    import trimesh
+
+    mesh = trimesh.creation.box(bounds=np.asarray(bounds, dtype=float))
+    return MeshPart(np.array(mesh.vertices), np.array(mesh.faces), reflectivity, name)

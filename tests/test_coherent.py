@@ -5,7 +5,8 @@ import math
 
 import numpy as np
 import pytest
-import trimesh
+from conftest import box_from_bounds as box
+from conftest import rect_seabed as seabed
 
 from sonar_raster.coherent import (
     HorizontalBeam,
@@ -24,20 +25,7 @@ from sonar_raster.trajectory import Trajectory
 C = 1500.0
 
 
-@pytest.fixture(autouse=True)
-def _strict_float():
-    with np.errstate(all="raise"):
-        yield
-
-
-def seabed(x0, x1, y0, y1, z=0.0, reflectivity=0.5):
-    v = np.array([[x0, y0, z], [x1, y0, z], [x1, y1, z], [x0, y1, z]], dtype=float)
-    return MeshPart(v, np.array([[0, 1, 2], [0, 2, 3]]), reflectivity, "seabed", True)
-
-
-def box(bounds, reflectivity=0.8):
-    mesh = trimesh.creation.box(bounds=np.asarray(bounds, dtype=float))
-    return MeshPart(np.array(mesh.vertices), np.array(mesh.faces), reflectivity, "box")
+pytestmark = pytest.mark.usefixtures("strict_float")
 
 
 def facing(points, sonar_position=(0.0, 0.0, 0.0)):

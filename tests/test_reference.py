@@ -4,7 +4,8 @@ import math
 
 import numpy as np
 import pytest
-import trimesh
+from conftest import box_from_bounds as box
+from conftest import rect_seabed as seabed
 
 from sonar_raster.analytic import flat_seabed_profile, shadow_length
 from sonar_raster.errors import SonarRasterError
@@ -17,22 +18,7 @@ ALTITUDE = 10.0
 BIN = 0.1
 
 
-@pytest.fixture(autouse=True)
-def _strict_float():
-    with np.errstate(all="raise"):
-        yield
-
-
-def seabed(x0, x1, y0, y1, z=0.0, reflectivity=0.5):
-    """Axis-aligned flat rectangle of two triangles, normal +z."""
-    v = np.array([[x0, y0, z], [x1, y0, z], [x1, y1, z], [x0, y1, z]], dtype=float)
-    return MeshPart(v, np.array([[0, 1, 2], [0, 2, 3]]), reflectivity, "seabed", True)
-
-
-def box(bounds, reflectivity=0.8, name="box"):
-    """Closed axis-aligned box with outward normals; bounds = [[x0, y0, z0], [x1, y1, z1]]."""
-    mesh = trimesh.creation.box(bounds=np.asarray(bounds, dtype=float))
-    return MeshPart(np.array(mesh.vertices), np.array(mesh.faces), reflectivity, name)
+pytestmark = pytest.mark.usefixtures("strict_float")
 
 
 def plate(centre, normal, size, reflectivity=0.7):
