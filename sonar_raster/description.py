@@ -374,8 +374,13 @@ def _from_model(path: Path, ov: Overrides) -> SceneSetup:
         raise SonarRasterError(f"altitude must be > 0 metres, got {altitude}")
     r_mid = 0.5 * sonar.max_range
     ground_range = math.sqrt(max(r_mid**2 - altitude**2, (0.25 * sonar.max_range) ** 2))
-    objects = _object({"file": path.name, "position": [ground_range, 0.0]}, path.parent, None, 0)
-    size = max(float(np.ptp(np.concatenate([p.vertices for p in objects]), axis=0).max()), 0.1)
+    placed = _object({"file": path.name, "position": [0.0, 0.0]}, path.parent, None, 0)
+    corners = np.concatenate([p.vertices for p in placed])
+    # Centre the model's footprint (not its file origin) at mid-swath, abeam of mid-track.
+    shift = np.array([ground_range, 0.0, 0.0])
+    shift[:2] -= 0.5 * (corners[:, :2].min(axis=0) + corners[:, :2].max(axis=0))
+    objects = [replace(p, vertices=p.vertices + shift) for p in placed]
+    size = max(float(np.ptp(corners, axis=0).max()), 0.1)
     length = max(20.0, 6.0 * size)
     pings = ov.pings if ov.pings is not None else 200
     seabed = make_seabed(

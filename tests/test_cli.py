@@ -169,3 +169,31 @@ def test_coherent_model(tmp_path):
     meta = json.loads((tmp_path / "c.json").read_text())
     assert meta["metadata"]["renderer"] == "coherent" and meta["metadata"]["seed"] == 2
     assert sides["starboard"].shape == (4, 600) and sides["starboard"].max() > 0
+
+
+def test_bare_model_with_offset_origin_is_centred(tmp_path):
+    """A model whose geometry sits far from its file origin still lands mid-swath, mid-track."""
+    model = tmp_path / "far.obj"
+    lines = [line for line in CUBE_OBJ.splitlines() if line.startswith("f")]
+    verts = [
+        f"v {x + 40} {y - 25} {z}"
+        for x, y, z in [
+            (0, 0, 0),
+            (1, 0, 0),
+            (1, 1, 0),
+            (0, 1, 0),
+            (0, 0, 1),
+            (1, 0, 1),
+            (1, 1, 1),
+            (0, 1, 1),
+        ]
+    ]
+    model.write_text("\n".join(verts + lines) + "\n")
+    from sonar_raster.description import load_scene_file
+
+    setup = load_scene_file(model)
+    cube = setup.scene.vertices[np.unique(setup.scene.faces[setup.scene.object_id == 1])]
+    middle = setup.trajectory.positions[setup.trajectory.n_pings // 2]
+    assert abs(cube[:, 1].mean() - middle[1]) < 0.2
+    assert 0.2 * setup.sonar.max_range < cube[:, 0].mean() < 0.6 * setup.sonar.max_range
+    assert cube[:, 2].min() == pytest.approx(0.0)
