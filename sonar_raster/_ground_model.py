@@ -1,20 +1,27 @@
-"""The ground-range Lambertian model of one side, its objective and exact discrete gradient.
+"""The Lambertian model of one side in slant range, its objective and exact discrete gradient.
 
 Conventions
 -----------
 Per ping the transducer is the origin; ``x > 0`` is the ground distance across track on the
 imaged side, ``y`` the along-track distance and ``Z`` the seabed elevation relative to the
-transducer (negative below it). Arrays are (pings, ground cells): axis 0 is ``y`` (spacing
-``dy``), axis 1 is ``x`` (spacing ``dx``, cell centres ``x``).
+transducer (negative below it). Unknowns are (pings, ground cells) arrays: axis 0 is ``y``
+(spacing ``dy``), axis 1 is ``x`` (spacing ``dx``, cell centres ``x``). Data and model are
+(pings, slant bins) arrays of intensity per metre of slant range, bin k covering
+``[k, k + 1) * range_bin``.
 
 Slopes use the stencil of ``numpy.gradient`` with ``edge_order=1``: central differences
 ``(Z[j+1] − Z[j−1]) / 2h`` inside, one-sided ``(Z[1] − Z[0]) / h`` and
-``(Z[n−1] − Z[n−2]) / h`` at the ends, zero along an axis of length 1.
+``(Z[n−1] − Z[n−2]) / h`` at the ends.
 
-With ``n = (−Zx, −Zy, 1)`` the upward normal and ``−r = −(x, 0, Z)`` the direction from the
-seabed to the sonar, ``cos θ = (x Zx − Z) / (ρ s)`` with ``ρ = sqrt(x² + Z²)`` and
-``s = sqrt(1 + Zx² + Zy²)`` (seed Eq. 14 with Z measured upward). The model is
-``Î = Φ R max(0, cos θ)``; the seed's constant K is absorbed into Φ.
+Model (the renderer's image formation, K absorbed into Φ): with ``n = (−Zx, −Zy, 1)`` the
+upward normal, the seabed patch ``dA = s dx dy`` (``s = |n|``) seen from the sonar at range
+``ρ = sqrt(x² + Z²)`` has ``cos θ = (x Zx − Z) / (ρ s)``, so ``cos θ dA = q dx dy`` with
+``q = (x Zx − Z) / ρ`` (Zy drops out). Ground cell j returns the energy
+``e_j = Φ_j R_j max(0, q_j) dx`` at its own slant range ``ρ_j``; it is split between the two
+nearest slant-bin centres by linear weights, ``u = ρ / range_bin − 1/2``, ``k0 = ⌊u⌋``,
+``t = u − k0``, and the model density is ``Î_k = Σ_j e_j w_jk / range_bin``. This carries
+the foreshortening ``dr/dx = (x + Z Zx) / ρ`` and the misregistration of relief in slant
+range, and sums the cells that fold onto one range (layover) as the renderer does.
 """
 
 from __future__ import annotations
@@ -22,6 +29,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import sparse
+from scipy.sparse.linalg import spsolve
 
 
 def slope(z: np.ndarray, axis: int, step: float) -> np.ndarray:
@@ -57,7 +66,7 @@ def slope_adjoint(g: np.ndarray, axis: int, step: float, power: int = 1) -> np.n
 
 @dataclass(frozen=True)
 class Geometry:
-    """Ground-range grid of one side.
+    """Ground-range grid of one side and the slant-range bins it is compared in.
 
     Attributes
     ----------
@@ -67,37 +76,79 @@ class Geometry:
         Ground-range cell size, metres.
     dy : float
         Along-track ping spacing, metres.
+    range_bin : float
+        Slant-range bin size, metres.
+    bins : int
+        Number of slant-range bins.
     """
 
     x: np.ndarray
     dx: float
     dy: float
+    range_bin: float
+    bins: int
 
 
 @dataclass(frozen=True)
-class Incidence:
-    """``cos θ`` and its partial derivatives, all shape (pings, cells)."""
+class _Cells:
+    """Per-cell terms of the model, all shape (pings, ground cells)."""
 
-    cos: np.ndarray
-    d_z: np.ndarray
-    d_zx: np.ndarray
-    d_zy: np.ndarray
+    q: np.ndarray  # max(0, x Zx − Z) / ρ
+    lit: np.ndarray  # x Zx − Z > 0
+    rho: np.ndarray
+    k0: np.ndarray  # lower slant bin (may be −1 or >= bins)
+    t: np.ndarray  # weight of bin k0 + 1
 
 
-def incidence(z: np.ndarray, geom: Geometry) -> Incidence:
-    """``cos θ`` of every cell and its partials wrt Z, Zx and Zy (Z held at the others)."""
+def _cells(z: np.ndarray, geom: Geometry) -> _Cells:
     x = geom.x[None, :]
-    zx, zy = slope(z, 1, geom.dx), slope(z, 0, geom.dy)
     rho = np.sqrt(x * x + z * z)
-    s2 = 1.0 + zx * zx + zy * zy
-    inv = 1.0 / (rho * np.sqrt(s2))
-    cos = (x * zx - z) * inv
-    return Incidence(cos, -inv - cos * z / (rho * rho), x * inv - cos * zx / s2, -cos * zy / s2)
+    num = x * slope(z, 1, geom.dx) - z
+    u = rho / geom.range_bin - 0.5
+    k0 = np.floor(u)
+    return _Cells(np.maximum(num, 0.0) / rho, num > 0.0, rho, k0.astype(np.int64), u - k0)
+
+
+def _splat(values: np.ndarray, c: _Cells, bins: int) -> np.ndarray:
+    """``Σ_j values_j w_jk``, shape (pings, bins); bins outside ``[0, bins)`` are dropped."""
+    pings, width = values.shape[0], bins + 2
+    rows = np.broadcast_to(np.arange(pings)[:, None] * width, values.shape)
+    lo = (rows + np.clip(c.k0 + 1, 0, bins + 1)).ravel()
+    hi = (rows + np.clip(c.k0 + 2, 0, bins + 1)).ravel()
+    out = np.bincount(lo, (values * (1.0 - c.t)).ravel(), pings * width)
+    out += np.bincount(hi, (values * c.t).ravel(), pings * width)
+    out = out.reshape(pings, width)
+    return out[:, 1:-1]
+
+
+def _gather(field: np.ndarray, c: _Cells) -> tuple[np.ndarray, np.ndarray]:
+    """``field`` (pings, bins) at each cell's bins k0 and k0 + 1 (0 outside)."""
+    pad = np.pad(field, ((0, 0), (1, 1)))
+    rows = np.arange(field.shape[0])[:, None]
+    last = field.shape[1] + 1
+    return pad[rows, np.clip(c.k0 + 1, 0, last)], pad[rows, np.clip(c.k0 + 2, 0, last)]
+
+
+def roughness(r: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """``Σ (ΔR)²`` over neighbouring cells along both axes, its gradient and JᵀJ diagonal."""
+    dx, dy = np.diff(r, axis=1), np.diff(r, axis=0)
+    grad = np.zeros_like(r)
+    grad[:, 1:] += 2.0 * dx
+    grad[:, :-1] -= 2.0 * dx
+    grad[1:] += 2.0 * dy
+    grad[:-1] -= 2.0 * dy
+    count = np.zeros_like(r)
+    count[:, 1:] += 1.0
+    count[:, :-1] += 1.0
+    count[1:] += 1.0
+    count[:-1] += 1.0
+    return float(np.sum(dx * dx) + np.sum(dy * dy)), grad, 2.0 * count
 
 
 def forward(r: np.ndarray, phi: np.ndarray, z: np.ndarray, geom: Geometry) -> np.ndarray:
-    """Model intensity ``Φ R max(0, cos θ)``, shape (pings, cells)."""
-    return phi * r * np.maximum(incidence(z, geom).cos, 0.0)
+    """Model intensity per metre of slant range, shape (pings, bins)."""
+    c = _cells(z, geom)
+    return _splat(phi * r * c.q * geom.dx, c, geom.bins) / geom.range_bin
 
 
 @dataclass(frozen=True)
@@ -120,10 +171,15 @@ def energy(
     phi: np.ndarray,
     z: np.ndarray,
     geom: Geometry,
+    smooth: float = 0.0,
 ) -> float:
-    """``E = Σ w (I − Î)²`` over the cells, a float."""
+    """``E = Σ w (I − Î)² + smooth Σ (ΔR)²``, a float (``image``, ``weight``: (pings, bins)).
+
+    The second term ties each cell's reflectivity to its neighbours' (along and across
+    track), so R cannot take up the relief's shading.
+    """
     res = forward(r, phi, z, geom) - image
-    return float(np.sum(weight * res * res))
+    return float(np.sum(weight * res * res)) + smooth * roughness(r)[0]
 
 
 def evaluate(
@@ -133,31 +189,106 @@ def evaluate(
     phi: np.ndarray,
     z: np.ndarray,
     geom: Geometry,
+    smooth: float = 0.0,
 ) -> Evaluation:
-    """Exact gradient of :func:`energy` wrt every cell of R, Φ and Z.
+    """Exact gradient of :func:`energy` wrt every ground cell of R, Φ and Z.
 
-    ``∂E/∂Z`` collects the direct term and, through the transposed stencils, the terms that
-    reach a cell through its neighbours' slopes. Where ``cos θ < 0`` the model is zero and so
-    is its derivative (at exactly 0 the one-sided derivative from the lit side is not used).
+    With ``G = 2 w (Î − I) / range_bin`` back-projected as ``b = (1 − t) G[k0] + t G[k0+1]``
+    and ``b' = (G[k0+1] − G[k0]) / range_bin``: ``∂E/∂e = b``, ``∂E/∂ρ = e b'``, and
+    ``∂E/∂Z`` collects ``b Φ R dx ∂q/∂Z + e b' Z/ρ`` and, through the transposed stencil,
+    ``b Φ R dx x/ρ`` of the neighbours whose slope the cell enters. Where ``q = 0`` (shadow)
+    its derivative is taken as 0. The diagonals are those of JᵀJ for each cell alone.
     """
-    inc = incidence(z, geom)
-    lit = inc.cos > 0.0
-    c = np.where(lit, inc.cos, 0.0)
-    res = 2.0 * weight * (phi * r * c - image)
-    gc = res * phi * r * lit
-    gz = gc * inc.d_z
-    gz += slope_adjoint(gc * inc.d_zx, 1, geom.dx)
-    gz += slope_adjoint(gc * inc.d_zy, 0, geom.dy)
-    amp = 2.0 * weight * (phi * r * lit) ** 2
-    dz = amp * inc.d_z**2
-    dz += slope_adjoint(amp * inc.d_zx**2, 1, geom.dx, power=2)
-    dz += slope_adjoint(amp * inc.d_zy**2, 0, geom.dy, power=2)
+    c = _cells(z, geom)
+    rb, dx = geom.range_bin, geom.dx
+    e = phi * r * c.q * dx
+    res = _splat(e, c, geom.bins) / rb - image
+    g0, g1 = _gather(2.0 * weight * res / rb, c)
+    b, db = (1.0 - c.t) * g0 + c.t * g1, (g1 - g0) / rb
+    w0, w1 = _gather(np.broadcast_to(2.0 * weight / rb**2, res.shape), c)
+    a = (1.0 - c.t) ** 2 * w0 + c.t**2 * w1
+    amp = phi * r * dx * c.lit
+    x = geom.x[None, :]
+    dq_dz = -1.0 / c.rho - c.q * z / c.rho**2
+    dq_dzx = x / c.rho
+    shift = e * z / c.rho
+    gz = b * amp * dq_dz + db * shift + slope_adjoint(b * amp * dq_dzx, 1, dx)
+    dz = a * (amp * dq_dz) ** 2 + (w0 + w1) * (shift / rb) ** 2
+    dz += slope_adjoint(a * (amp * dq_dzx) ** 2, 1, dx, power=2)
+    rough, grad_rough, diag_rough = roughness(r)
     return Evaluation(
-        energy=float(np.sum(weight * (phi * r * c - image) ** 2)),
-        grad_r=res * phi * c,
-        grad_phi=res * r * c,
+        energy=float(np.sum(weight * res * res)) + smooth * rough,
+        grad_r=b * phi * c.q * dx + smooth * grad_rough,
+        grad_phi=b * r * c.q * dx,
         grad_z=gz,
-        diag_r=2.0 * weight * (phi * c) ** 2,
-        diag_phi=2.0 * weight * (r * c) ** 2,
+        diag_r=a * (phi * c.q * dx) ** 2 + smooth * diag_rough,
+        diag_phi=a * (r * c.q * dx) ** 2,
         diag_z=dz,
     )
+
+
+def _slope_matrix(n: int, step: float) -> sparse.csr_matrix:
+    """The :func:`slope` stencil along one axis of length ``n`` as a sparse matrix."""
+    d = sparse.lil_matrix((n, n))
+    if n >= 2:
+        for j in range(1, n - 1):
+            d[j, j - 1], d[j, j + 1] = -0.5 / step, 0.5 / step
+        d[0, 0], d[0, 1] = -1.0 / step, 1.0 / step
+        d[n - 1, n - 2], d[n - 1, n - 1] = -1.0 / step, 1.0 / step
+    return d.tocsr()
+
+
+def jacobian_z(
+    weight: np.ndarray, r: np.ndarray, phi: np.ndarray, z: np.ndarray, geom: Geometry
+) -> sparse.csr_matrix:
+    """``sqrt(w) ∂Î/∂Z`` as a sparse (pings·bins) × (pings·cells) matrix.
+
+    Exact, with the same terms as :func:`evaluate`.
+    """
+    c = _cells(z, geom)
+    rb, dx = geom.range_bin, geom.dx
+    pings, cells = z.shape
+    amp = phi * r * dx * c.lit / rb
+    x = geom.x[None, :]
+    direct_q = amp * (-1.0 / c.rho - c.q * z / c.rho**2)
+    shift = phi * r * c.q * dx * z / c.rho / rb**2
+    via_slope = amp * x / c.rho
+    width = geom.bins
+    rows_base = np.arange(pings)[:, None] * width
+    col = np.arange(pings * cells).reshape(pings, cells)
+    parts_d, parts_s = [], []
+    for k, wgt, dw in ((c.k0, 1.0 - c.t, -1.0), (c.k0 + 1, c.t, 1.0)):
+        inside = (k >= 0) & (k < width)
+        row = (rows_base + np.clip(k, 0, width - 1))[inside]
+        parts_d.append((row, col[inside], (direct_q * wgt + shift * dw)[inside]))
+        parts_s.append((row, col[inside], (via_slope * wgt)[inside]))
+    shape = (pings * width, pings * cells)
+
+    def build(parts):
+        rows, cols, vals = (np.concatenate(p) for p in zip(*parts, strict=True))
+        return sparse.csr_matrix((vals, (rows, cols)), shape=shape)
+
+    dmat = sparse.kron(sparse.identity(pings), _slope_matrix(cells, geom.dx), format="csr")
+    sw = sparse.diags(np.sqrt(weight).ravel())
+    return (sw @ (build(parts_d) + build(parts_s) @ dmat)).tocsr()
+
+
+def gauss_newton_z(
+    grad_z: np.ndarray,
+    weight: np.ndarray,
+    r: np.ndarray,
+    phi: np.ndarray,
+    z: np.ndarray,
+    geom: Geometry,
+    damping: float,
+) -> np.ndarray:
+    """Levenberg-Marquardt step of Z: ``−(2 JᵀJ + μ I)⁻¹ ∂E/∂Z``, shape of ``z``.
+
+    ``μ = damping × mean diagonal of 2 JᵀJ``; with ``μ > 0`` the step is a descent direction.
+    """
+    j = jacobian_z(weight, r, phi, z, geom)
+    h = 2.0 * (j.T @ j).tocsc()
+    diag = h.diagonal()
+    mu = damping * float(diag.mean()) if diag.size and diag.mean() > 0 else 1.0
+    h = h + sparse.identity(h.shape[0], format="csc") * mu
+    return -spsolve(h, grad_z.ravel()).reshape(z.shape)

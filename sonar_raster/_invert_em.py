@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._ground_model import Geometry, energy, evaluate
+from ._ground_model import Geometry, energy, evaluate, gauss_newton_z
 
 #: Sufficient-decrease constant of the Armijo test.
 ARMIJO = 1e-4
@@ -31,14 +31,18 @@ class Problem:
 
     Attributes
     ----------
-    image, weight : ndarray, shape (pings, cells)
-        Ground-range intensity and the 0/1 weight of each cell in E.
+    image, weight : ndarray, shape (pings, slant bins)
+        Intensity per metre of slant range and the 0/1 weight of each bin in E.
     geom : Geometry
         Ground cell centres and spacings.
-    bins : ndarray, shape (pings, cells), int64
+    bins : ndarray, shape (pings, ground cells), int64
         Depression-angle bin of every cell (index into the Φ profile).
     tie : ndarray, shape (pings * cells,), int64
         Flat index of the cell whose reflectivity each cell takes (nearest lit cell).
+    smooth : float
+        Weight of the reflectivity roughness term of E.
+    smooth_phi : float
+        Weight of the beam-profile curvature term ``Σ (Δ²Φ)²`` of E.
     """
 
     image: np.ndarray
@@ -46,16 +50,18 @@ class Problem:
     geom: Geometry
     bins: np.ndarray
     tie: np.ndarray
+    smooth: float = 0.0
+    smooth_phi: float = 0.0
 
     def cells(self, r: np.ndarray, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Per-cell R and Φ from the parameters (flat R, Φ profile)."""
-        shape = self.image.shape
-        return r[self.tie].reshape(shape), phi[self.bins]
+        return r[self.tie].reshape(self.bins.shape), phi[self.bins]
 
     def energy(self, r: np.ndarray, phi: np.ndarray, z: np.ndarray) -> float:
         """E of the parameters."""
         rc, pc = self.cells(r, phi)
-        return energy(self.image, self.weight, rc, pc, z, self.geom)
+        data = energy(self.image, self.weight, rc, pc, z, self.geom, self.smooth)
+        return data + self.smooth_phi * float(np.sum(np.diff(phi, 2) ** 2))
 
 
 @dataclass(frozen=True)
@@ -77,27 +83,36 @@ def _search_direction(
     prob: Problem, r: np.ndarray, phi: np.ndarray, z: np.ndarray, steps: Steps
 ) -> tuple[float, list[np.ndarray], float]:
     rc, pc = prob.cells(r, phi)
-    ev = evaluate(prob.image, prob.weight, rc, pc, z, prob.geom)
+    ev = evaluate(prob.image, prob.weight, rc, pc, z, prob.geom, prob.smooth)
     nb = len(phi)
     grads = [
         np.bincount(prob.tie, ev.grad_r.ravel(), minlength=r.size),
         np.bincount(prob.bins.ravel(), ev.grad_phi.ravel(), minlength=nb),
         ev.grad_z,
     ]
+    if prob.smooth_phi > 0 and len(phi) > 2:
+        d2 = np.diff(phi, 2)
+        adj = np.zeros_like(phi)
+        adj[:-2] += d2
+        adj[1:-1] -= 2.0 * d2
+        adj[2:] += d2
+        grads[1] = grads[1] + 2.0 * prob.smooth_phi * adj
     diags = [
         np.bincount(prob.tie, ev.diag_r.ravel(), minlength=r.size),
-        np.bincount(prob.bins.ravel(), ev.diag_phi.ravel(), minlength=nb),
+        np.bincount(prob.bins.ravel(), ev.diag_phi.ravel(), minlength=nb) + 12.0 * prob.smooth_phi,
         ev.diag_z,
     ]
     dirs = [
         _direction(g, d, s)
         for g, d, s in zip(grads, diags, (steps.r, steps.phi, steps.z), strict=True)
     ]
+    if steps.z > 0 and z.size:
+        dirs[2] = steps.z * gauss_newton_z(ev.grad_z, prob.weight, rc, pc, z, prob.geom, DAMPING)
     biggest = float(np.max(np.abs(dirs[2]))) if dirs[2].size else 0.0
     if biggest > prob.geom.dx:
         dirs[2] *= prob.geom.dx / biggest
     slope = sum(float(np.sum(g * d)) for g, d in zip(grads, dirs, strict=True))
-    return ev.energy, dirs, slope
+    return prob.energy(r, phi, z), dirs, slope
 
 
 def iterate(

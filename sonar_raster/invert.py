@@ -1,11 +1,13 @@
 """Reflectivity, beam profile and elevation of the seabed from one side of a sonar image.
 
 The slant-range image is resampled to ground range over a flat seabed at the altitude of the
-first bottom return, then the ground-range Lambertian model ``Î = Φ R max(0, cos θ(Z))``
-(:mod:`sonar_raster._ground_model`, seed Eqs. 12–14 with K absorbed into Φ) is fitted by
-least squares (Eq. 16) with EM iterations (:mod:`sonar_raster._invert_em`) on a three-level
-pyramid, Φ constrained to be equal at equal depression angle (Eq. 21) and reflectivity in
-shadows tied to the nearest lit cell (:mod:`sonar_raster._invert_regular`).
+first bottom return (for the initial R and Φ and the shadow ties), then the Lambertian model
+(:mod:`sonar_raster._ground_model`, seed Eqs. 12–14 with K absorbed into Φ), which places each
+ground cell's return at its own slant range, is fitted to the slant-range image by least
+squares (Eq. 16) with EM iterations (:mod:`sonar_raster._invert_em`) on a three-level pyramid,
+Φ constrained to be equal at equal depression angle (Eq. 21) and reflectivity in shadows tied
+to the nearest lit cell (:mod:`sonar_raster._invert_regular`). Each finer level keeps the
+lowest-energy of three starts (see :func:`_solve`).
 
 Z is the elevation relative to the transducer in metres, negative below it.
 """
@@ -39,6 +41,11 @@ __all__ = [
 
 #: Initial reflectivity (seed: "typically 0.9").
 INITIAL_REFLECTIVITY = 0.9
+#: Weight of the reflectivity roughness ``Σ (ΔR)²`` against the data term, in units of the
+#: mean squared data per ground cell over the mean R².
+REFLECTIVITY_SMOOTHING = 10.0
+#: Weight of the beam-profile curvature ``Σ (Δ²Φ)²`` in the same units (per ping).
+BEAM_SMOOTHING = 100.0
 
 
 @dataclass(frozen=True)
@@ -249,8 +256,8 @@ def invert(
     dx = float(ground_bin or range_bin)
     x = ground_axis(alt, range_bin, image.shape[1], dx)
     ground, valid = slant_to_ground(image, range_bin, alt, x)
-    geom = Geometry(x, dx, float(ping_spacing or dx))
-    chain = pyramid.build(ground, valid, alt, geom, levels)
+    geom = Geometry(x, dx, float(ping_spacing or dx), float(range_bin), image.shape[1])
+    chain = pyramid.build(ground, valid, image / range_bin, alt, geom, levels)
     steps = steps or Steps()
     if beam is not None:
         steps = Steps(steps.r, 0.0, steps.z)
@@ -262,11 +269,28 @@ def invert(
     return _result(chain[-1], state, ground, valid, energies)
 
 
+def _data_scale(level: pyramid.Level, r: np.ndarray) -> float:
+    """Mean ``w I²`` per ground cell over R², the unit of the roughness weight."""
+    scale = float(np.sum(level.slant_weight * level.slant**2)) / max(level.image.size, 1)
+    r2 = float(np.mean(r * r))
+    return scale / r2 if r2 > 0 else 0.0
+
+
 def _solve(level, prev, coarse, beam, steps, max_iter, tol, progress):
+    """Fit one level; below the coarsest, from three starts, keeping the lowest final E.
+
+    The starts are the coarser level's R, Φ and Z; its R and Φ over the flat seabed at the
+    detected altitude; and a fresh start as at the coarsest level. The coarse levels alias
+    relief finer than a few of their cells, and their Z can trap the finer level.
+    """
     bins, centres = angle_bins(level.geom.x, level.altitude)
     st = _start(level, bins, centres, prev, coarse, beam)
     tie = _ties(level, st.phi[bins])
-    prob = Problem(level.image, level.weight, level.geom, bins, tie)
+    smooth = REFLECTIVITY_SMOOTHING * _data_scale(level, st.r)
+    scale = _data_scale(level, st.r) * float(np.mean(st.r * st.r))
+    phi2 = float(np.mean(st.phi**2)) or 1.0
+    smooth_phi = BEAM_SMOOTHING * scale * level.image.shape[0] / phi2
+    prob = Problem(level.slant, level.slant_weight, level.geom, bins, tie, smooth, smooth_phi)
     bar = None
     if progress:
         from tqdm import tqdm
@@ -274,16 +298,20 @@ def _solve(level, prev, coarse, beam, steps, max_iter, tol, progress):
         bar = tqdm(
             total=max_iter, desc=f"inverting at 1/{level.factor} resolution", unit="it", leave=False
         )
-    r, phi, z, e = iterate(
-        prob,
-        st.r.ravel(),
-        st.phi,
-        st.z,
-        steps=steps,
-        max_iter=max_iter,
-        tol=tol,
-        tick=bar.update if bar is not None else None,
-    )
+    tick = bar.update if bar is not None else None
+    runs = [(st, tick)]
+    if prev is not None:
+        fresh = _start(level, bins, centres, None, None, beam)
+        runs.append((_State(st.r, st.phi, fresh.z, centres), None))
+        runs.append((fresh, None))
+    best = None
+    for s0, tk in runs:
+        out = iterate(
+            prob, s0.r.ravel(), s0.phi, s0.z, steps=steps, max_iter=max_iter, tol=tol, tick=tk
+        )
+        if best is None or out[3][-1] < best[3][-1]:
+            best = out
+    r, phi, z, e = best
     if bar is not None:
         bar.close()
     r_cells, _ = prob.cells(r, phi)

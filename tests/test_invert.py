@@ -8,7 +8,16 @@ import numpy as np
 import pytest
 
 from sonar_raster._ground import first_return, ground_to_slant, slant_to_ground
-from sonar_raster._ground_model import Geometry, energy, evaluate, slope, slope_adjoint
+from sonar_raster._ground_model import (
+    Geometry,
+    energy,
+    evaluate,
+    forward,
+    jacobian_z,
+    slope,
+    slope_adjoint,
+)
+from sonar_raster._invert_em import Problem, Steps, _search_direction
 from sonar_raster.errors import SonarRasterError
 from sonar_raster.invert import BeamProfile, invert
 from sonar_raster.scene import build_scene
@@ -74,17 +83,19 @@ def ripple_image(gl_renderer, ripples):
     return _render(gl_renderer, ripples)
 
 
-def test_gradient_matches_central_differences():
+@pytest.mark.parametrize("smooth", [0.0, 3.0])
+def test_gradient_matches_central_differences(smooth):
     rng = np.random.default_rng(3)
     shape = (5, 7)
-    geom = Geometry((np.arange(7) + 0.5) * 0.5 + 1.0, 0.5, 0.4)
+    geom = Geometry((np.arange(7) + 0.5) * 0.5 + 1.0, 0.5, 0.4, 0.2, 60)
     args = {
         "r": rng.uniform(0.3, 1.0, shape),
         "phi": rng.uniform(0.5, 2.0, shape),
         "z": -10.0 + 0.2 * rng.standard_normal(shape),
     }
-    image, weight = rng.uniform(0.0, 1.0, shape), (rng.uniform(size=shape) > 0.1) * 1.0
-    ev = evaluate(image, weight, geom=geom, **args)
+    image = rng.uniform(0.0, 1.0, (5, 60))
+    weight = (rng.uniform(size=(5, 60)) > 0.1) * 1.0
+    ev = evaluate(image, weight, geom=geom, smooth=smooth, **args)
     for name, grad in (("r", ev.grad_r), ("phi", ev.grad_phi), ("z", ev.grad_z)):
         num = np.zeros(shape)
         for idx in np.ndindex(shape):
@@ -94,9 +105,36 @@ def test_gradient_matches_central_differences():
                 moved = dict(args)
                 moved[name] = args[name].copy()
                 moved[name][idx] += sign * h
-                e.append(energy(image, weight, geom=geom, **moved))
+                e.append(energy(image, weight, geom=geom, smooth=smooth, **moved))
             num[idx] = (e[0] - e[1]) / (2 * h)
         assert np.max(np.abs(grad - num)) <= 1e-4 * np.max(np.abs(num))
+    # The sparse Jacobian of the Levenberg-Marquardt step carries the same data terms.
+    jac = jacobian_z(weight, geom=geom, **args)
+    res = np.sqrt(weight) * (forward(geom=geom, **args) - image)
+    data_grad = ev.grad_z if smooth == 0.0 else evaluate(image, weight, geom=geom, **args).grad_z
+    assert np.allclose(2.0 * jac.T @ res.ravel(), data_grad.ravel(), rtol=1e-8, atol=1e-10)
+
+
+def test_beam_curvature_gradient_matches_central_differences():
+    rng = np.random.default_rng(5)
+    shape = (4, 6)
+    geom = Geometry((np.arange(6) + 0.5) * 0.5 + 1.0, 0.5, 0.4, 0.2, 60)
+    bins = np.repeat(np.arange(6)[None, :], 4, axis=0)
+    prob = Problem(
+        rng.uniform(0.0, 1.0, (4, 60)),
+        np.ones((4, 60)),
+        geom,
+        bins,
+        np.arange(24),
+        smooth=0.5,
+        smooth_phi=7.0,
+    )
+    r, phi = rng.uniform(0.3, 1.0, 24), rng.uniform(0.5, 2.0, 6)
+    z = -10.0 + 0.2 * rng.standard_normal(shape)
+    _, dirs, slope_ = _search_direction(prob, r, phi, z, Steps(0.0, 1.0, 0.0))
+    h = 1e-6
+    num = (prob.energy(r, phi + h * dirs[1], z) - prob.energy(r, phi - h * dirs[1], z)) / (2 * h)
+    assert slope_ == pytest.approx(num, rel=1e-5)
 
 
 @pytest.mark.parametrize("axis", [0, 1])
@@ -142,8 +180,9 @@ def test_flat_seabed_stays_flat_and_recovers_the_beam(gl_renderer):
 def test_ripple_round_trip(ripple_image, ripples):
     inv = invert(ripple_image, SONAR.range_bin, ping_spacing=SPACING, max_iter=100)
     truth = _truth(ripples, inv.x)
-    # Reached today: about 0.95 of the relief's std (see the xfail below for the target).
-    assert _z_rmse(inv, truth) < 1.2 * np.std(truth)
+    # Reached today: 0.77 of the relief's std (0.57 without the constant offset of about
+    # 1.5 cm left by the first-return altitude; see the xfail below for the target).
+    assert _z_rmse(inv, truth) < 0.8 * np.std(truth)
     _monotone(inv)
 
 
