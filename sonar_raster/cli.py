@@ -167,6 +167,20 @@ def _add_invert(sub) -> None:
         help="sonar altitude (default: first bottom return of each ping)",
     )
     inv.add_argument("--side", choices=("port", "starboard"), help="which side of an EXR")
+    inv.add_argument(
+        "--max-iter",
+        type=_positive(int),
+        default=300,
+        metavar="N",
+        help="most iterations per pyramid level and start (default 300; fewer is faster, coarser)",
+    )
+    inv.add_argument(
+        "--ping-spacing",
+        type=_positive(float),
+        metavar="METRES",
+        help="along-track distance between pings, for the along-track slope (default: the "
+        "ground cell size)",
+    )
     inv.add_argument("--quiet", action="store_true", help="no progress bar or summary")
 
 
@@ -178,7 +192,14 @@ def _invert(args: argparse.Namespace) -> int:
     range_bin = args.range_bin or attrs.get("sonar:range_bin_m")
     if not range_bin:
         raise SonarRasterError("--range-bin is required for this image")
-    result = invert(image, float(range_bin), altitude=args.altitude, progress=not args.quiet)
+    result = invert(
+        image,
+        float(range_bin),
+        altitude=args.altitude,
+        ping_spacing=args.ping_spacing,
+        max_iter=args.max_iter,
+        progress=not args.quiet,
+    )
     written = write_products(result, Path(args.output), side, float(range_bin))
     if not args.quiet:
         for k, level in enumerate(result.energies):

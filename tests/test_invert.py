@@ -282,6 +282,11 @@ def test_cli_invert_renderer_exr(gl_renderer, ripples, tmp_path, capsys):
         "beam.exr",
         "inversion.json",
     }
+    quick = tmp_path / "quick"
+    argv = ["invert", str(tmp_path / "in.exr"), "-o", str(quick), "--quiet", "--max-iter", "2"]
+    assert main([*argv, "--ping-spacing", "0.1"]) == 0
+    short = json.loads((quick / "inversion.json").read_text())
+    assert all(len(level) <= 3 for level in short["energy_per_iteration"])
 
 
 @pytest.mark.parametrize(
