@@ -46,19 +46,9 @@ def read_side(path: Path, side: str | None) -> tuple[np.ndarray, str, dict]:
 
 
 def _read_png(path: Path) -> np.ndarray:
-    import OpenImageIO as oiio
+    from .io import read_pixels
 
-    inp = oiio.ImageInput.open(str(path))
-    if inp is None:
-        raise SonarRasterError(f"cannot read {path}: {oiio.geterror() or 'not an image'}")
-    try:
-        spec = inp.spec()
-        pixels = inp.read_image(format=oiio.FLOAT)
-    finally:
-        inp.close()
-    if pixels is None:
-        raise SonarRasterError(f"cannot read pixels of {path}")
-    return np.asarray(pixels, dtype=np.float64).reshape(spec.height, spec.width, -1)[:, :, 0]
+    return read_pixels(path)[0][:, :, 0].astype(np.float64)
 
 
 def _write_map(tmp: Path, values: np.ndarray, name: str) -> None:

@@ -60,11 +60,6 @@ class ScatterSurface:
     facet_area: np.ndarray
     reflectivity: np.ndarray
 
-    @property
-    def n_facets(self) -> int:
-        """Total number of facets (scatterers) of the whole scene."""
-        return int(np.sum(self.n_sub.astype(np.float64) ** 2))
-
 
 def scatter_surface(scene: Scene, local: np.ndarray, spacing: float) -> ScatterSurface:
     """Subdivide ``scene`` (shifted by ``-local``) for a scatterer spacing in metres."""

@@ -174,6 +174,29 @@ def write_image(
     return _commit(jobs)
 
 
+def read_pixels(path: str | os.PathLike) -> tuple[np.ndarray, oiio.ImageSpec]:
+    """Pixels of any image OpenImageIO reads, as float32 (height, width, channels), and its spec.
+
+    Raises
+    ------
+    SonarRasterError
+        If the file cannot be opened or its pixels cannot be read.
+    """
+    inp = oiio.ImageInput.open(str(path))
+    if inp is None:
+        raise SonarRasterError(f"cannot read {path}: {oiio.geterror() or 'not an image'}")
+    try:
+        spec = inp.spec()
+        pixels = inp.read_image(format=oiio.FLOAT)
+        error = inp.geterror()
+    finally:
+        inp.close()
+    if pixels is None:
+        raise SonarRasterError(f"cannot read pixels of {path}: {error}")
+    shape = (spec.height, spec.width, spec.nchannels)
+    return np.asarray(pixels, dtype=np.float32).reshape(shape), spec
+
+
 def read_exr(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], dict]:
     """Read an EXR written by :func:`write_image`.
 
@@ -189,21 +212,10 @@ def read_exr(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], dict]:
     attributes : dict
         Every header attribute by name (``sonar:*``, ``sonar_raster:*``, compression, ...).
     """
-    inp = oiio.ImageInput.open(str(path))
-    if inp is None:
-        raise SonarRasterError(f"cannot read {path}: {oiio.geterror() or 'not an image'}")
-    try:
-        spec = inp.spec()
-        pixels = inp.read_image(format=oiio.FLOAT)
-        error = inp.geterror()
-    finally:
-        inp.close()
-    if pixels is None:
-        raise SonarRasterError(f"cannot read pixels of {path}: {error}")
+    pixels, spec = read_pixels(path)
     names = list(spec.channelnames)
     if not names or any(name not in SIDES for name in names):
         raise SonarRasterError(f"{path}: channels {names} are not port/starboard sonar sides")
-    pixels = np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, len(names))
     sides = {name: np.ascontiguousarray(pixels[:, :, i]) for i, name in enumerate(names)}
     return sides, {attr.name: attr.value for attr in spec.extra_attribs}
 

@@ -308,3 +308,18 @@ def test_cli_invert_bad_input_writes_nothing(argv, tmp_path, monkeypatch, capsys
     err = capsys.readouterr().err.strip()
     assert err.startswith("sonar-raster: error:") and "\n" not in err
     assert not (tmp_path / "out").exists()
+
+
+def test_png_input_is_read_as_linear_grey_levels(tmp_path):
+    import OpenImageIO as oiio
+
+    from sonar_raster._invert_io import read_side
+
+    levels = (np.arange(6 * 9).reshape(6, 9) * 4).astype(np.uint8)
+    out = oiio.ImageOutput.create(str(tmp_path / "in.png"))
+    out.open(str(tmp_path / "in.png"), oiio.ImageSpec(9, 6, 1, oiio.UINT8))
+    out.write_image(levels[:, :, None])
+    out.close()
+    image, side, _ = read_side(tmp_path / "in.png", None)
+    assert image.shape == (6, 9) and side == "starboard"
+    np.testing.assert_allclose(image, levels / 255.0, atol=1e-6)
