@@ -2,10 +2,14 @@
 // Pass 1: rasterise the scene for one straight track segment and one side into
 // (ping row x look-angle column) samples. Each fragment is one ray of the fan:
 // it writes the exact slant range of its hit and the weight Phi * R * f(cos t)/cos t * r * dalpha * dy.
-// Defines: BEAM_TABLE (0/1 unused here, the column table carries Phi*dalpha), SCATTERING (1 = Lambert).
+// Defines: SCATTERING (1 = Lambert); LABELS (1: also write the face's label, object id + 1, to
+// a second target for the label pass; 0: no label work at all).
 
 #ifndef SCATTERING
 #error "SCATTERING must be defined"
+#endif
+#ifndef LABELS
+#error "LABELS must be defined"
 #endif
 
 #if defined VERTEX_SHADER
@@ -66,6 +70,10 @@ layout(std430, binding = 0) readonly buffer FaceData { float face_refl[]; };
 flat out vec4 g_plane;          // unit normal (xyz, segment frame) and offset n.q
 flat out float g_refl;
 out vec3 g_q;
+#if LABELS
+layout(std430, binding = 2) readonly buffer FaceLabels { uint face_label[]; };
+flat out uint g_label;
+#endif
 
 void main() {
     float amin = min(v_alpha[0], min(v_alpha[1], v_alpha[2]));
@@ -81,6 +89,9 @@ void main() {
         g_plane = vec4(n, dot(n, v_q[0]));
         g_refl = refl;
         g_q = v_q[i];
+#if LABELS
+        g_label = face_label[gl_PrimitiveIDIn];
+#endif
         EmitVertex();
     }
     EndPrimitive();
@@ -101,6 +112,10 @@ uniform float far_range;
 // plane whose ranges are spread like the sum of two uniform variables of those widths, so
 // pass 2 can share the weight among the bins the patch overlaps.
 layout(location = 0) out vec4 out_sample;
+#if LABELS
+flat in uint g_label;
+layout(location = 1) out uint out_label;
+#endif
 
 float scattering_over_cos(float cos_t) {
 #if SCATTERING == 1
@@ -136,6 +151,9 @@ void main() {
         s = vec4(0.5 * (lo + hi), hi - lo, along, w);
     }
     out_sample = s;
+#if LABELS
+    out_label = g_label;
+#endif
     gl_FragDepth = clamp(t / far_range, 0.0, 1.0);
 }
 #endif

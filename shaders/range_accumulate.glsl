@@ -4,10 +4,14 @@
 // integer addition is exact and does not depend on order, so the image is deterministic.
 // Defines: SPLIT (0 nearest: whole weight to the bin holding the centre range; 1 linear:
 // split between the two nearest bin centres; 2 footprint: spread uniformly over the range
-// interval the sample's ray bundle covers, at most MAX_SPREAD bins).
+// interval the sample's ray bundle covers, at most MAX_SPREAD bins); LABELS (1: also keep,
+// per cell, the label of the sample whose share of the cell is largest).
 
 #ifndef SPLIT
 #error "SPLIT must be defined"
+#endif
+#ifndef LABELS
+#error "LABELS must be defined"
 #endif
 #define MAX_SPREAD 16
 
@@ -22,9 +26,22 @@ uniform int ping_offset;        // first ping of this segment in the accumulator
 uniform int n_bins;
 uniform float inv_bin;          // 1 / range bin (1/m)
 uniform float scale;            // fixed-point units per weight unit
+#if LABELS
+uniform usampler2D sample_labels;  // pass 1's label target: object id + 1 per texel
+layout(std430, binding = 3) buffer CellLabels { uint cell_labels[]; };   // (ping, bin)
+uint label;
+#endif
 
 void deposit(int ping, int bin, float w) {
     if (bin < 0 || bin >= n_bins) return;
+#if LABELS
+    // The bits of a positive float order like its value: the top 16 (sign, exponent, 7
+    // mantissa bits) rank the share to 1 %, the low 16 carry the label; the max wins.
+    if (w > 0.0) {
+        uint key = (floatBitsToUint(w) & 0xFFFF0000u) | (label & 0xFFFFu);
+        atomicMax(cell_labels[uint(ping * n_bins + bin)], key);
+    }
+#endif
     uint v = uint(min(w * scale, 2147483648.0) + 0.5);  // the scale keeps it below 2^31
     if (v == 0u) return;
     uint idx = 2u * uint(ping * n_bins + bin);
@@ -52,6 +69,9 @@ void main() {
     float w = s.w;
     if (!(w > 0.0)) return;
     int ping = ping_offset + p.y / rows_per_ping;
+#if LABELS
+    label = texelFetch(sample_labels, p, 0).r;
+#endif
     float centre = s.x * inv_bin;
 #if SPLIT == 2
     float wa = max(s.y, s.z) * inv_bin, wb = min(s.y, s.z) * inv_bin;

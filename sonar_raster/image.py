@@ -24,11 +24,16 @@ class SonarImage:
         The sonar that made the image.
     metadata : dict
         Anything needed to reproduce the image (scene, trajectory, renderer settings).
+    labels : dict of str to ndarray, shape (pings, bins), uint16, or None
+        Per side, which object each cell's largest share of weight came from: 0 where nothing
+        returned, else the scene's ``object_id + 1`` (``metadata["label_names"]`` names them).
+        None unless the renderer was asked for labels.
     """
 
     sides: dict[str, np.ndarray]
     sonar: Sonar
     metadata: dict = field(default_factory=dict)
+    labels: dict[str, np.ndarray] | None = None
 
     @property
     def shape(self) -> tuple[int, int]:

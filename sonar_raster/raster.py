@@ -142,18 +142,18 @@ class RasterRenderer:
         }
 
     # -- programs ---------------------------------------------------------------------------
-    def _program(self, kind: str) -> Any:
-        key = kind if kind == "samples" else f"{kind}:{self.settings.split}"
+    def _program(self, kind: str, labels: bool = False) -> Any:
+        key = f"{kind}:{self.settings.split}:{int(labels)}"
         if key not in self._programs:
             if kind == "samples":
-                d = {"SCATTERING": 1}
+                d = {"SCATTERING": 1, "LABELS": int(labels)}
                 self._programs[key] = self.ctx.program(
                     vertex_shader=specialise("ping_samples.glsl", "VERTEX_SHADER", d),
                     geometry_shader=specialise("ping_samples.glsl", "GEOMETRY_SHADER", d),
                     fragment_shader=specialise("ping_samples.glsl", "FRAGMENT_SHADER", d),
                 )
             else:
-                d = {"SPLIT": _SPLITS.index(self.settings.split)}
+                d = {"SPLIT": _SPLITS.index(self.settings.split), "LABELS": int(labels)}
                 self._programs[key] = self.ctx.compute_shader(
                     specialise("range_accumulate.glsl", "COMPUTE_SHADER", d)
                 )
@@ -175,6 +175,7 @@ class RasterRenderer:
         self._release_geometry()
         vertices = scene.vertices - origin  # float64 shift, then float32
         faces, refl = scene.faces, scene.reflectivity
+        label = scene.object_id.astype(np.uint32) + 1  # 0 is kept for "no return"
         counts = subdivision_counts(vertices, faces, max_edge)
         big = counts > 1
         if big.any():
@@ -185,51 +186,79 @@ class RasterRenderer:
             new_faces = len(scene.vertices) + np.arange(len(extra)).reshape(-1, 3)
             faces = np.concatenate([keep, new_faces])
             refl = np.concatenate([refl[~big], refl[big][parent]])
+            label = np.concatenate([label[~big], label[big][parent]])
             log.info("subdivided %d large triangles into %d", int(big.sum()), len(pieces))
         ctx = self.ctx
         vbo = ctx.buffer(vertices.astype("f4").tobytes())
         ibo = ctx.buffer(faces.astype("u4").tobytes())
         face_buf = ctx.buffer(refl.astype("f4").tobytes())
-        vao = ctx.vertex_array(
-            self._program("samples"),
-            [(vbo, "3f", "in_pos")],
-            index_buffer=ibo,
-            index_element_size=4,
-        )
         self._geometry = {
             "vertices": vertices,
             "faces_cpu": faces,
             "refl_cpu": refl,
+            "label_cpu": label,
             "max_edge": max_edge,
             "vbo": vbo,
             "ibo": ibo,
             "faces": face_buf,
-            "vao": vao,
             "n_faces": len(faces),
             "r_max": float(refl.max(initial=0.0)),
         }
         self._scene_key = key
         self._scene = scene
 
+    def _vao(self, geometry: dict[str, Any], labels: bool) -> Any:
+        """The vertex array of ``geometry`` for the pass-1 program (made on first use)."""
+        key = f"vao:{int(labels)}"
+        if key not in geometry:
+            geometry[key] = self.ctx.vertex_array(
+                self._program("samples", labels),
+                [(self._geometry["vbo"], "3f", "in_pos")],
+                index_buffer=geometry["ibo"],
+                index_element_size=4,
+            )
+            if geometry.get("empty"):
+                geometry[key].vertices = 0
+        return geometry[key]
+
+    def _labels_buffer(self, geometry: dict[str, Any], ids: np.ndarray | None) -> Any:
+        """Per-face labels (object id + 1) as a storage buffer, made on first use."""
+        if "labels" not in geometry:
+            label = self._geometry["label_cpu"]
+            data = label if ids is None else label[ids]
+            geometry["labels"] = self.ctx.buffer(data.astype("u4").tobytes() or b"\0" * 4)
+        return geometry["labels"]
+
     def _release_targets(self) -> None:
         for obj in self._targets.values():
             obj.release()
         self._targets.clear()
 
-    def _framebuffer(self, width: int, height: int) -> dict[str, Any]:
-        """Sample targets at least this size, reused across draws (each draws in a viewport)."""
+    def _framebuffer(self, width: int, height: int, labels: bool) -> dict[str, Any]:
+        """Sample targets at least this size, reused across draws (each draws in a viewport).
+
+        With ``labels`` a second, uint32 target holds each texel's label; it is kept once made
+        (a draw without labels leaves it untouched and nothing reads it).
+        """
         if self._targets:
             old_w, old_h = self._targets["color"].size
-            if old_w >= width and old_h >= height:
+            has_labels = "labels" in self._targets
+            if old_w >= width and old_h >= height and (has_labels or not labels):
                 return self._targets
             width, height = max(width, old_w), max(height, old_h)
+            labels = labels or has_labels
         color = self.ctx.texture((width, height), 4, dtype="f4")
+        attachments = [color]
+        if labels:
+            attachments.append(self.ctx.texture((width, height), 1, dtype="u4"))
         depth = self.ctx.depth_texture((width, height))
         depth.compare_func = ""  # pass 2 reads the depth itself: < 1 where a fragment landed
-        fbo = self.ctx.framebuffer([color], depth)
+        fbo = self.ctx.framebuffer(attachments, depth)
         fbo.use()  # bind the new one first: releasing a bound framebuffer upsets moderngl
         self._release_targets()
         self._targets = {"fbo": fbo, "color": color, "depth": depth}
+        if labels:
+            self._targets["labels"] = attachments[1]
         return self._targets
 
     # -- planning ---------------------------------------------------------------------------
@@ -279,16 +308,21 @@ class RasterRenderer:
 
     # -- rendering --------------------------------------------------------------------------
     def render(
-        self, scene: Scene, sonar: Sonar, trajectory: Trajectory, progress: bool = False
+        self,
+        scene: Scene,
+        sonar: Sonar,
+        trajectory: Trajectory,
+        progress: bool = False,
+        labels: bool = False,
     ) -> SonarImage:
         """Render one image per side (see :meth:`_render`); makes this context current first."""
         if self.ctx is None:
             raise SonarRasterError("this renderer was released; make a new one")
         with self.ctx:
-            return self._render(scene, sonar, trajectory, progress)
+            return self._render(scene, sonar, trajectory, progress, labels)
 
     def _render(
-        self, scene: Scene, sonar: Sonar, trajectory: Trajectory, progress: bool
+        self, scene: Scene, sonar: Sonar, trajectory: Trajectory, progress: bool, labels: bool
     ) -> SonarImage:
         """Render one image per side.
 
@@ -299,6 +333,9 @@ class RasterRenderer:
         trajectory : Trajectory
         progress : bool
             Show a progress bar over the draws.
+        labels : bool
+            Also label each cell with the object its largest share of weight came from
+            (``SonarImage.labels``); off, no label work is done at all.
 
         Returns
         -------
@@ -315,8 +352,12 @@ class RasterRenderer:
         self._framebuffer(
             max(t[1] for tiles in tables for t in tiles),
             max(d.rows for d in draws) * self.settings.along_samples,
+            labels,
         )
         cells = {side: self.ctx.buffer(reserve=n_pings * n_bins * 8) for side in sonar.sides}
+        if labels:
+            for side in sonar.sides:
+                cells[f"{side}:labels"] = self.ctx.buffer(reserve=n_pings * n_bins * 4)
         for buf in cells.values():
             buf.clear()
         try:
@@ -328,10 +369,16 @@ class RasterRenderer:
             for draw, table in items:
                 geometry = self._geometry_for(draw, sonar, origin)
                 try:
-                    self._draw(draw, table, origin, sonar, scale, cells[draw.side], geometry)
+                    self._draw(draw, table, origin, sonar, scale, cells, geometry, labels)
                 finally:
                     self._release_subset(geometry)
             sides = {s: self._read(cells[s], draws, scale, n_pings, n_bins, s) for s in sonar.sides}
+            label_images = None
+            if labels:
+                label_images = {
+                    s: self._read_labels(cells[f"{s}:labels"], draws, n_pings, n_bins, s)
+                    for s in sonar.sides
+                }
         finally:
             for buf in cells.values():
                 buf.release()
@@ -342,7 +389,9 @@ class RasterRenderer:
             "draws": len(draws),
             "triangles": int(self._geometry["n_faces"]),
         }
-        return SonarImage(sides=sides, sonar=sonar, metadata=meta)
+        if labels:
+            meta["label_names"] = ["(no return)", *scene.names]
+        return SonarImage(sides=sides, sonar=sonar, metadata=meta, labels=label_images)
 
     def _column_tables(self, draw: _Draw, sonar: Sonar) -> list[tuple[int, int, int, np.ndarray]]:
         """Per column tile: (first column, count, total, (alpha, Φ dα) float32 array)."""
@@ -379,15 +428,17 @@ class RasterRenderer:
         origin: np.ndarray,
         sonar: Sonar,
         scale: float,
-        cells: Any,
+        cells: dict[str, Any],
         geometry: dict[str, Any],
+        labels: bool,
     ) -> None:
         ctx = self.ctx
         seg = draw.segment
         along = self.settings.along_samples
         height = draw.rows * along
-        prog = self._program("samples")
-        comp = self._program("accumulate")
+        prog = self._program("samples", labels)
+        comp = self._program("accumulate", labels)
+        vao = self._vao(geometry, labels)
         far = 1.5 * sonar.max_range
         rho_lo_all, rho_hi_all = draw.warp.rho_range
         uniforms = {
@@ -414,6 +465,11 @@ class RasterRenderer:
             if name in prog:
                 prog[name].value = value
         geometry["faces"].bind_to_storage_buffer(0)
+        if labels:
+            self._labels_buffer(geometry, geometry.get("ids")).bind_to_storage_buffer(2)
+            cells[f"{draw.side}:labels"].bind_to_storage_buffer(3)
+            self._targets["labels"].use(location=3)
+            comp["sample_labels"].value = 3
         ctx.enable_direct(_GL_DEPTH_CLAMP)
         targets = self._targets
         fbo = targets["fbo"]
@@ -427,18 +483,19 @@ class RasterRenderer:
                 fbo.viewport = (0, 0, count, height)
                 # Clear the depth only: pass 2 skips texels whose depth stayed at 1, so stale
                 # colour from an earlier draw is never read (and the colour clear is saved).
-                fbo.color_mask = (False, False, False, False)
+                n_targets = len(fbo.color_attachments)
+                fbo.color_mask = _masks(False, n_targets)
                 fbo.use()  # moderngl applies the colour mask when the framebuffer is bound
                 fbo.clear(depth=1.0, viewport=(0, 0, count, height))
-                fbo.color_mask = (True, True, True, True)
+                fbo.color_mask = _masks(True, n_targets)
                 fbo.use()
                 ctx.enable(ctx.DEPTH_TEST)
                 col_tex.use(location=1)
                 prog["columns"].value = 1
-                geometry["vao"].render(mode=ctx.TRIANGLES)
+                vao.render(mode=ctx.TRIANGLES)
                 targets["color"].use(location=0)
                 targets["depth"].use(location=2)
-                cells.bind_to_storage_buffer(1)
+                cells[draw.side].bind_to_storage_buffer(1)
                 comp["samples"].value = 0
                 comp["depth"].value = 2
                 comp["size"].value = (count, height)
@@ -480,33 +537,43 @@ class RasterRenderer:
         ids = np.flatnonzero(keep)
         ibo = self.ctx.buffer(f[ids].astype("u4").tobytes() or b"\0" * 12)
         faces = self.ctx.buffer(geo["refl_cpu"][ids].astype("f4").tobytes() or b"\0" * 4)
-        vao = self.ctx.vertex_array(
-            self._program("samples"),
-            [(geo["vbo"], "3f", "in_pos")],
-            index_buffer=ibo,
-            index_element_size=4,
-        )
-        if len(ids) == 0:
-            vao.vertices = 0
-        return {"ibo": ibo, "faces": faces, "vao": vao, "subset": True}
+        return {"ibo": ibo, "faces": faces, "ids": ids, "empty": len(ids) == 0, "subset": True}
 
     @staticmethod
     def _release_subset(geometry: dict[str, Any]) -> None:
         if geometry.get("subset"):
-            for key in ("vao", "ibo", "faces"):
-                geometry[key].release()
+            for obj in geometry.values():
+                if hasattr(obj, "release"):
+                    obj.release()
 
     def _read(
         self, cells: Any, draws: list[_Draw], scale: float, n_pings: int, n_bins: int, side: str
     ) -> np.ndarray:
         # Each cell is a (low, high) pair of uint32: read as one little-endian uint64.
         total = np.frombuffer(cells.read(), dtype="<u8").reshape(n_pings, n_bins)
-        image = (total * (1.0 / scale)).astype(np.float32)
-        for draw in draws:
-            seg = draw.segment
-            if draw.side == side and draw.rows == 1 and seg.count > 1:
-                image[seg.first + 1 : seg.first + seg.count] = image[seg.first]
-        return image
+        return _fill_stationary((total * (1.0 / scale)).astype(np.float32), draws, side)
+
+    def _read_labels(
+        self, cells: Any, draws: list[_Draw], n_pings: int, n_bins: int, side: str
+    ) -> np.ndarray:
+        # The low 16 bits of each cell's key are the label (see range_accumulate.glsl).
+        keys = np.frombuffer(cells.read(), dtype="<u4").reshape(n_pings, n_bins)
+        return _fill_stationary((keys & 0xFFFF).astype(np.uint16), draws, side)
+
+
+def _fill_stationary(image: np.ndarray, draws: list[_Draw], side: str) -> np.ndarray:
+    """Copy the one rendered row of each stationary segment to all its pings (in place)."""
+    for draw in draws:
+        seg = draw.segment
+        if draw.side == side and draw.rows == 1 and seg.count > 1:
+            image[seg.first + 1 : seg.first + seg.count] = image[seg.first]
+    return image
+
+
+def _masks(write: bool, n_targets: int) -> Any:
+    """A colour mask for every target (moderngl wants a plain tuple for a single target)."""
+    one = (write,) * 4
+    return one if n_targets == 1 else [one] * n_targets
 
 
 def _dot(points: np.ndarray, axis: np.ndarray) -> np.ndarray:
@@ -522,7 +589,8 @@ def render_raster(
     backend: str | None = None,
     settings: RasterSettings | None = None,
     progress: bool = False,
+    labels: bool = False,
 ) -> SonarImage:
     """Render with a temporary :class:`RasterRenderer` (see its ``render``)."""
     with RasterRenderer(backend, settings) as renderer:
-        return renderer.render(scene, sonar, trajectory, progress=progress)
+        return renderer.render(scene, sonar, trajectory, progress=progress, labels=labels)

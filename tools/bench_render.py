@@ -436,8 +436,8 @@ def gl_stages(bench: Bench, case: Case) -> dict[str, float]:
 
         for name in ("_plan", "_column_tables", "_fixed_point_scale", "_framebuffer", "_read"):
             setattr(r, name, clock(name)(getattr(r, name)))
-        r._geometry["vao"] = _Clocked(r._geometry["vao"], "render", clock("pass 1: draw"))
-        key = f"accumulate:{r.settings.split}"
+        r._geometry["vao:0"] = _Clocked(r._geometry["vao:0"], "render", clock("pass 1: draw"))
+        key = f"accumulate:{r.settings.split}:0"
         r._programs[key] = _Clocked(r._programs[key], "run", clock("pass 2: accumulate"))
         total, _ = timed(clock("instrumented render")(render))
     out["other (clears, uploads, uniforms)"] = total - sum(
