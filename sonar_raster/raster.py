@@ -14,13 +14,15 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import asdict, dataclass
+from collections.abc import Iterator
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from ._shaders import specialise
 from ._subdivide import subdivide, subdivision_counts
+from ._tiles import TileIndex
 from ._warp import Warp
 from .errors import SonarRasterError
 from .glcontext import create_context, release_context
@@ -315,15 +317,6 @@ class RasterRenderer:
         progress: bool = False,
         labels: bool = False,
     ) -> SonarImage:
-        """Render one image per side (see :meth:`_render`); makes this context current first."""
-        if self.ctx is None:
-            raise SonarRasterError("this renderer was released; make a new one")
-        with self.ctx:
-            return self._render(scene, sonar, trajectory, progress, labels)
-
-    def _render(
-        self, scene: Scene, sonar: Sonar, trajectory: Trajectory, progress: bool, labels: bool
-    ) -> SonarImage:
         """Render one image per side.
 
         Parameters
@@ -342,13 +335,77 @@ class RasterRenderer:
         SonarImage
             float32 (pings × bins) per side; see :class:`SonarImage` for units.
         """
-        origin = trajectory.positions[0].copy()
-        max_edge = self.settings.max_edge or 20.0 * sonar.range_bin
-        self._upload(scene, origin, max_edge)
-        draws = self._plan(scene, sonar, trajectory)
+        chunks = self.render_chunks(
+            scene, sonar, trajectory, trajectory.n_pings, progress=progress, labels=labels
+        )
+        return next(iter(chunks))
+
+    def render_chunks(
+        self,
+        scene: Scene,
+        sonar: Sonar,
+        trajectory: Trajectory,
+        chunk_pings: int = 1024,
+        *,
+        progress: bool = False,
+        labels: bool = False,
+    ) -> Iterator[SonarImage]:
+        """Render the track in blocks of pings, yielding each block's image as it finishes.
+
+        Memory stays bounded by the block, not the track: write each block out (see
+        :class:`sonar_raster.io.ExrStreamWriter`) and drop it. The track is split into straight
+        segments once for the whole track, then cut at block edges, so the blocks put together
+        equal :meth:`render` of the whole track to float32 rounding. Each draw draws only the
+        triangles near its block's swath (a tile index over the scene), and a draw with no
+        triangle near it is skipped.
+
+        Parameters
+        ----------
+        scene, sonar, trajectory, progress, labels
+            As for :meth:`render`.
+        chunk_pings : int
+            Pings per block, >= 1.
+
+        Yields
+        ------
+        SonarImage
+            Rows ``metadata["first_ping"]`` onwards of the track; ``metadata["counters"]``
+            counts what the block drew and skipped.
+        """
+        if self.ctx is None:
+            raise SonarRasterError("this renderer was released; make a new one")
+        if not (isinstance(chunk_pings, (int, np.integer)) and chunk_pings >= 1):
+            raise SonarRasterError(f"chunk_pings must be a positive integer, got {chunk_pings!r}")
+        with self.ctx:
+            origin = trajectory.positions[0].copy()
+            max_edge = self.settings.max_edge or 20.0 * sonar.range_bin
+            self._upload(scene, origin, max_edge)
+            plan = self._plan(scene, sonar, trajectory)
+        for first in range(0, trajectory.n_pings, int(chunk_pings)):
+            last = min(trajectory.n_pings, first + int(chunk_pings))
+            draws = [d for d in (_clip(d, first, last) for d in plan) if d is not None]
+            with self.ctx:
+                image = self._render_block(
+                    scene, sonar, draws, origin, (first, last), progress, labels
+                )
+            yield image
+
+    def _render_block(
+        self,
+        scene: Scene,
+        sonar: Sonar,
+        draws: list[_Draw],
+        origin: np.ndarray,
+        pings: tuple[int, int],
+        progress: bool,
+        labels: bool,
+    ) -> SonarImage:
+        """Render pings ``pings[0] .. pings[1] - 1`` from their draws."""
         tables = [self._column_tables(d, sonar) for d in draws]
         scale = self._fixed_point_scale(draws, tables, sonar.max_range, sonar.range_bin)
-        n_pings, n_bins = trajectory.n_pings, sonar.n_bins
+        first_ping = pings[0]
+        n_pings, n_bins = pings[1] - pings[0], sonar.n_bins
+        counters = {"draws": 0, "draws_skipped_empty": 0, "triangles_drawn": 0}
         self._framebuffer(
             max(t[1] for tiles in tables for t in tiles),
             max(d.rows for d in draws) * self.settings.along_samples,
@@ -369,15 +426,22 @@ class RasterRenderer:
             for draw, table in items:
                 geometry = self._geometry_for(draw, sonar, origin)
                 try:
-                    self._draw(draw, table, origin, sonar, scale, cells, geometry, labels)
+                    if geometry["n_faces"] == 0:
+                        counters["draws_skipped_empty"] += 1
+                        continue
+                    self._draw(
+                        draw, table, origin, sonar, scale, cells, geometry, labels, first_ping
+                    )
+                    counters["draws"] += 1
+                    counters["triangles_drawn"] += int(geometry["n_faces"])
                 finally:
                     self._release_subset(geometry)
-            sides = {s: self._read(cells[s], draws, scale, n_pings, n_bins, s) for s in sonar.sides}
+            shape = (first_ping, n_pings, n_bins)
+            sides = {s: self._read(cells[s], draws, scale, shape, s) for s in sonar.sides}
             label_images = None
             if labels:
                 label_images = {
-                    s: self._read_labels(cells[f"{s}:labels"], draws, n_pings, n_bins, s)
-                    for s in sonar.sides
+                    s: self._read_labels(cells[f"{s}:labels"], draws, shape, s) for s in sonar.sides
                 }
         finally:
             for buf in cells.values():
@@ -388,6 +452,8 @@ class RasterRenderer:
             **self.gl_info,
             "draws": len(draws),
             "triangles": int(self._geometry["n_faces"]),
+            "first_ping": first_ping,
+            "counters": counters,
         }
         if labels:
             meta["label_names"] = ["(no return)", *scene.names]
@@ -431,6 +497,7 @@ class RasterRenderer:
         cells: dict[str, Any],
         geometry: dict[str, Any],
         labels: bool,
+        ping_base: int,
     ) -> None:
         ctx = self.ctx
         seg = draw.segment
@@ -500,7 +567,7 @@ class RasterRenderer:
                 comp["depth"].value = 2
                 comp["size"].value = (count, height)
                 comp["rows_per_ping"].value = along
-                comp["ping_offset"].value = seg.first
+                comp["ping_offset"].value = seg.first - ping_base
                 comp["n_bins"].value = sonar.n_bins
                 comp["inv_bin"].value = 1.0 / sonar.range_bin
                 comp["scale"].value = scale
@@ -513,31 +580,62 @@ class RasterRenderer:
     def _geometry_for(self, draw: _Draw, sonar: Sonar, origin: np.ndarray) -> dict[str, Any]:
         """The uploaded scene, or only its triangles that can reach this draw's image.
 
-        A triangle is kept when one of its corners lies within the subdivision edge length of
-        the segment's along-track window, of the maximum range from the track, and of the
-        draw's side. Culling pays on long tracks and large scenes; when half the scene or more
-        is near, the whole scene is drawn and nothing is uploaded.
+        Candidates come from a tile index over the plane (the bounding box of the draw's swath
+        rectangle); a candidate is kept when one of its corners lies within the subdivision
+        edge length of the segment's along-track window, of the maximum range from the track,
+        and of the draw's side. When half the scene or more is kept, the whole scene is drawn
+        and nothing is uploaded.
         """
         geo = self._geometry
         seg = draw.segment
-        v, f = geo["vertices"], geo["faces_cpu"]
-        rel = v - (seg.origin - origin)
-        # Vertex tests, widened by the longest edge, so a triangle whose corners are all outside
+        # Corner tests widened by the longest edge, so a triangle whose corners are all outside
         # but which crosses the window is still kept.
         margin = geo["max_edge"]
-        t = _dot(rel, seg.along)
+        t_lo = -0.5 * seg.width - margin
         t_hi = (seg.count - 1) * seg.spacing + 0.5 * seg.width + margin
-        near = (t >= -0.5 * seg.width - margin) & (t <= t_hi)
         reach = sonar.max_range + 8.0 * sonar.range_bin + margin
+        start = seg.origin - origin
+        corners = np.array(
+            [start + a * seg.along + b * draw.axis_side for a in (t_lo, t_hi) for b in (0, reach)]
+        )
+        index = self._tile_index(reach)
+        candidates = index.query(
+            corners[:, 0].min(),
+            corners[:, 0].max(),
+            corners[:, 1].min(),
+            corners[:, 1].max(),
+            margin,
+        )
+        f = geo["faces_cpu"][candidates]
+        rel = geo["vertices"][f.reshape(-1)] - start
+        t = _dot(rel, seg.along)
         side = _dot(rel, draw.axis_side)
-        near &= (side >= -margin) & (np.hypot(side, _dot(rel, seg.up)) <= reach)
-        if near.mean() > 0.5:
+        near = (t >= t_lo) & (t <= t_hi) & (side >= -margin)
+        near &= np.hypot(side, _dot(rel, seg.up)) <= reach
+        ids = candidates[near.reshape(-1, 3).any(axis=1)]
+        if len(ids) > 0.5 * geo["n_faces"]:
             return geo
-        keep = near[f].any(axis=1)
-        ids = np.flatnonzero(keep)
-        ibo = self.ctx.buffer(f[ids].astype("u4").tobytes() or b"\0" * 12)
-        faces = self.ctx.buffer(geo["refl_cpu"][ids].astype("f4").tobytes() or b"\0" * 4)
-        return {"ibo": ibo, "faces": faces, "ids": ids, "empty": len(ids) == 0, "subset": True}
+        faces = geo["faces_cpu"][ids]
+        ibo = self.ctx.buffer(faces.astype("u4").tobytes() or b"\0" * 12)
+        refl = self.ctx.buffer(geo["refl_cpu"][ids].astype("f4").tobytes() or b"\0" * 4)
+        return {
+            "ibo": ibo,
+            "faces": refl,
+            "ids": ids,
+            "n_faces": len(ids),
+            "empty": len(ids) == 0,
+            "subset": True,
+        }
+
+    def _tile_index(self, reach: float) -> TileIndex:
+        """The tile index of the uploaded scene, tiles about a quarter of the reach (cached)."""
+        geo = self._geometry
+        size = max(0.25 * reach, 2.0 * geo["max_edge"])
+        index = geo.get("tile_index")
+        if index is None or not (0.5 * size <= index.size <= 2.0 * size):
+            index = TileIndex(geo["vertices"], geo["faces_cpu"], size)
+            geo["tile_index"] = index
+        return index
 
     @staticmethod
     def _release_subset(geometry: dict[str, Any]) -> None:
@@ -547,27 +645,43 @@ class RasterRenderer:
                     obj.release()
 
     def _read(
-        self, cells: Any, draws: list[_Draw], scale: float, n_pings: int, n_bins: int, side: str
+        self, cells: Any, draws: list[_Draw], scale: float, shape: tuple[int, int, int], side: str
     ) -> np.ndarray:
         # Each cell is a (low, high) pair of uint32: read as one little-endian uint64.
-        total = np.frombuffer(cells.read(), dtype="<u8").reshape(n_pings, n_bins)
-        return _fill_stationary((total * (1.0 / scale)).astype(np.float32), draws, side)
+        total = np.frombuffer(cells.read(), dtype="<u8").reshape(shape[1:])
+        image = (total * (1.0 / scale)).astype(np.float32)
+        return _fill_stationary(image, draws, side, shape[0])
 
     def _read_labels(
-        self, cells: Any, draws: list[_Draw], n_pings: int, n_bins: int, side: str
+        self, cells: Any, draws: list[_Draw], shape: tuple[int, int, int], side: str
     ) -> np.ndarray:
         # The low 16 bits of each cell's key are the label (see range_accumulate.glsl).
-        keys = np.frombuffer(cells.read(), dtype="<u4").reshape(n_pings, n_bins)
-        return _fill_stationary((keys & 0xFFFF).astype(np.uint16), draws, side)
+        keys = np.frombuffer(cells.read(), dtype="<u4").reshape(shape[1:])
+        return _fill_stationary((keys & 0xFFFF).astype(np.uint16), draws, side, shape[0])
 
 
-def _fill_stationary(image: np.ndarray, draws: list[_Draw], side: str) -> np.ndarray:
+def _fill_stationary(image: np.ndarray, draws: list[_Draw], side: str, base: int) -> np.ndarray:
     """Copy the one rendered row of each stationary segment to all its pings (in place)."""
     for draw in draws:
         seg = draw.segment
         if draw.side == side and draw.rows == 1 and seg.count > 1:
-            image[seg.first + 1 : seg.first + seg.count] = image[seg.first]
+            first = seg.first - base
+            image[first + 1 : first + seg.count] = image[first]
     return image
+
+
+def _clip(draw: _Draw, first: int, last: int) -> _Draw | None:
+    """The part of a draw that renders pings ``first .. last - 1``, or None if it has none."""
+    seg = draw.segment
+    lo, hi = max(first, seg.first), min(last, seg.first + seg.count)
+    if lo >= hi:
+        return None
+    if lo == seg.first and hi == seg.first + seg.count:
+        return draw
+    shift = (lo - seg.first) * seg.spacing
+    piece = replace(seg, first=lo, count=hi - lo, origin=seg.origin + shift * seg.along)
+    rows = 1 if draw.rows == 1 else hi - lo
+    return replace(draw, segment=piece, rows=rows)
 
 
 def _masks(write: bool, n_targets: int) -> Any:
