@@ -1,0 +1,85 @@
+"""Streaming a track to disk in blocks: same files as rendering it whole, nothing half-written."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from conftest import box_from_bounds, rect_seabed
+
+from sonar_raster.cli import main
+from sonar_raster.errors import SonarRasterError
+from sonar_raster.io import read_exr, read_pixels, write_image
+from sonar_raster.raster import render_raster
+from sonar_raster.scene import build_scene
+from sonar_raster.sonar import Sonar
+from sonar_raster.survey import render_survey
+from sonar_raster.trajectory import Trajectory
+
+
+@pytest.fixture()
+def setup():
+    scene = build_scene(
+        [rect_seabed(-60.0, 60.0, -60.0, 60.0), box_from_bounds([[10, -1, 0], [11, 1, 1.2]])]
+    )
+    sonar = Sonar(max_range=25.0, range_bin=0.1)
+    traj = Trajectory.straight((0.0, -8.0, 6.0), 0.0, 0.25, 70)
+    return scene, sonar, traj
+
+
+def test_streamed_files_match_the_whole_image(tmp_path, setup):
+    scene, sonar, traj = setup
+    written, summary = render_survey(
+        scene, sonar, traj, [tmp_path / "s.exr", tmp_path / "s.png"], chunk_pings=16
+    )
+    assert summary["blocks"] == 5 and summary["draws"] == 10
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.exr", "s.json", "s.png"]
+    whole = render_raster(scene, sonar, traj)
+    sides, attrs = read_exr(tmp_path / "s.exr")
+    for side in sonar.sides:
+        err = np.abs(sides[side] - whole.sides[side]).max()
+        assert err <= 1e-5 * whole.sides[side].max()
+    assert attrs["sonar:range_bin_m"] == pytest.approx(0.1)
+    # The PNG of the whole image with the mapping the survey chose (every ping was sampled).
+    doc = json.loads((tmp_path / "s.json").read_text())
+    assert doc["shape"] == [70, 250] and doc["metadata"]["survey"]["chunk_pings"] == 16
+    write_image(
+        whole, tmp_path / "w.png", dynamic_range_db=doc["display_mapping"]["dynamic_range_db"]
+    )
+    streamed, _ = read_pixels(tmp_path / "s.png")
+    direct, _ = read_pixels(tmp_path / "w.png")
+    assert streamed.shape == direct.shape == (70, 500, 1)
+    assert np.mean(np.abs(streamed - direct) > 1.5 / 255) < 1e-3
+
+
+def test_a_failed_survey_leaves_nothing(tmp_path, setup, monkeypatch):
+    scene, sonar, traj = setup
+    (tmp_path / "s.exr").write_bytes(b"user's old file")
+
+    def broken(self, block):
+        if block.metadata["first_ping"] > 0:
+            raise SonarRasterError("disk full (simulated)")
+        return original(self, block)
+
+    from sonar_raster import survey
+
+    original = survey.ExrStreamWriter.write
+    monkeypatch.setattr(survey.ExrStreamWriter, "write", broken)
+    with pytest.raises(SonarRasterError, match="disk full"):
+        render_survey(scene, sonar, traj, [tmp_path / "s.exr", tmp_path / "s.png"], chunk_pings=16)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.exr"]
+    assert (tmp_path / "s.exr").read_bytes() == b"user's old file"
+
+
+def test_cli_streams_with_chunk_pings(tmp_path, capsys):
+    out = tmp_path / "flat.exr"
+    code = main(["render", "flat_calibration", "-o", str(out), "--chunk-pings", "7", "-q"])
+    assert code == 0
+    sides, _ = read_exr(out)
+    assert all(np.isfinite(a).all() and a.max() > 0 for a in sides.values())
+    code = main(
+        ["render", "default", "-o", str(out), "--chunk-pings", "7", "--renderer", "reference"]
+    )
+    assert code == 2
+    assert "--chunk-pings needs the GL raster renderer" in capsys.readouterr().err
