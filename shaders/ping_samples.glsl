@@ -18,9 +18,10 @@
 // from the slant range).
 in vec3 in_pos;                 // local coordinates (metres, scene local origin subtracted)
 uniform vec3 seg_origin;        // segment origin, local coordinates
-uniform vec3 axis_along;
-uniform vec3 axis_side;         // starboard or port unit vector
-uniform vec3 axis_up;
+uniform vec3 axis_along;        // the fan's normal (the vehicle's fore axis)
+uniform vec3 axis_side;         // starboard or port unit vector, in the fan plane
+uniform vec3 axis_up;           // up, in the fan plane
+uniform vec3 motion;            // unit direction of travel in (fore, side, up) coordinates
 uniform float warp_h;           // nominal altitude of the range warp, metres
 uniform float warp_c;           // near-nadir floor of the warp slope (fraction of warp_h)
 uniform float alpha0;           // asin(warp_h / max_range): where the linear extension starts
@@ -31,7 +32,7 @@ uniform float rho_hi;           // warp value at the last column edge (alpha_min
 uniform float row_scale;        // 2 / (spacing * pings)  (clip units per metre along track)
 uniform float row_offset;       // clip y of along-track coordinate 0
 uniform float far_range;        // slant range mapped to depth 1
-out vec3 v_q;                   // (along, side, up) coordinates relative to the segment origin
+out vec3 v_q;                   // (fore, side, up) coordinates relative to the segment origin
 out float v_alpha;              // depression angle in (-pi/2, 3pi/2]
 
 float warp(float a) {
@@ -46,14 +47,18 @@ float warp(float a) {
 void main() {
     vec3 d = in_pos - seg_origin;
     vec3 q = vec3(dot(d, axis_along), dot(d, axis_side), dot(d, axis_up));
+    // The vertex lies in the fan of the ping at travel u; f is its offset from that ping, in
+    // the fan plane (f.x = 0). Without crab or pitch, motion = (1, 0, 0) and f = (0, q.yz).
+    float u = q.x / motion.x;
+    vec3 f = q - u * motion;
     // The wrap of the angle is straight up, outside any beam.
-    float a = atan(-q.z, q.y);
+    float a = atan(-f.z, f.y);
     if (a < -1.5707963267948966) a += 6.283185307179586;
     v_q = q;
     v_alpha = a;
     gl_Position = vec4(2.0 * (warp(a) - rho_lo) / (rho_hi - rho_lo) - 1.0,
-                       q.x * row_scale + row_offset,
-                       2.0 * length(q.yz) / far_range - 1.0, 1.0);
+                       u * row_scale + row_offset,
+                       2.0 * length(f.yz) / far_range - 1.0, 1.0);
 }
 #endif
 
@@ -105,7 +110,8 @@ in vec3 g_q;
 uniform sampler2D columns;      // per column: (alpha, Phi(alpha - axis) * dalpha, dalpha / 2)
 uniform float spacing;          // metres between pings (0 for a stationary sonar)
 uniform float rows_per_ping;
-uniform float row_width;        // along-track width of one row, metres
+uniform float row_width;        // travel of one row, metres
+uniform vec3 motion;            // unit direction of travel in (fore, side, up) coordinates
 uniform float far_range;
 // (centre range, range width from the look-angle extent, range width from the along-track
 // extent, weight): the ray bundle of the sample covers an (angle x along-track) patch of the
@@ -134,7 +140,7 @@ float hit(vec3 origin, float a) {
 void main() {
     vec3 col = texelFetch(columns, ivec2(int(gl_FragCoord.x), 0), 0).xyz;
     float y = (gl_FragCoord.y / rows_per_ping - 0.5) * spacing;
-    vec3 origin = vec3(y, 0.0, 0.0);
+    vec3 origin = y * motion;
     vec3 dir = vec3(0.0, cos(col.x), -sin(col.x));
     float cos_t = -dot(g_plane.xyz, dir);
     float t = hit(origin, col.x);
@@ -145,9 +151,10 @@ void main() {
         float tb = hit(origin, col.x + col.z);
         float lo = min(t, min(ta > 0.0 ? ta : t, tb > 0.0 ? tb : t));
         float hi = max(t, max(ta, tb));
-        // Range is linear in the along-track position on a plane: dt/dy = -n.x / (n . dir).
-        float along = abs(g_plane.x / cos_t) * row_width;
-        float w = g_refl * scattering_over_cos(cos_t) * t * col.y * row_width;
+        // Range is linear in the travel on a plane: dt/du = -(n . motion) / (n . dir). The fans
+        // of consecutive rows lie row_width * motion.x apart (their normal is the fore axis).
+        float along = abs(dot(g_plane.xyz, motion) / cos_t) * row_width;
+        float w = g_refl * scattering_over_cos(cos_t) * t * col.y * row_width * motion.x;
         s = vec4(0.5 * (lo + hi), hi - lo, along, w);
     }
     out_sample = s;

@@ -314,6 +314,11 @@ def render_coherent(
     blocks = []
     for segment in trajectory.segments(sonar.range_bin / 4.0):
         frame = _frame(segment, trajectory, local, spacing)
+        if not np.allclose(frame.axes, frame.fan_axes, atol=1e-9):
+            raise SonarRasterError(
+                "the coherent model does not model crab or pitch yet (heading off the course, "
+                "or pitch not 0); use the raster model for this track"
+            )
         sl = slice(segment.first, segment.first + segment.count)
         pings = (trajectory.positions[sl] - local - frame.origin) @ frame.axes.T
         for j0 in range(0, segment.count, block):

@@ -89,6 +89,7 @@ class _Draw:
     segment: Segment
     side: str
     axis_side: np.ndarray
+    motion: np.ndarray  # direction of travel in (fore, side, up) fan coordinates
     frame_sign: float
     warp: Warp
     beam_axis: float
@@ -276,7 +277,10 @@ class RasterRenderer:
         )
         z_top = float(scene.bounds[1, 2])
         draws = []
-        for seg in trajectory.segments(tol, max_count=max(1, max_rows)):
+        # Fans of one draw share an orientation: their spread moves far-range points along
+        # track by max_range x angle; keep that under half a ping (0.05 to 0.5 degrees).
+        angle = min(max(0.5 * trajectory.typical_spacing / sonar.max_range, 8.7e-4), 8.7e-3)
+        for seg in trajectory.segments(tol, max_count=max(1, max_rows), angle_tolerance=angle):
             roll = float(np.mean(trajectory.roll[seg.first : seg.first + seg.count]))
             altitude = float(seg.origin[2] - scene.ground_z)
             # Nothing above z_top within the image's reach (max range plus the largest spread
@@ -288,12 +292,14 @@ class RasterRenderer:
             for side in sonar.sides:
                 sign = 1.0 if side == "starboard" else -1.0
                 axis_side = sign * seg.starboard
-                det = float(np.linalg.det(np.stack([seg.along, axis_side, seg.up])))
+                det = float(np.linalg.det(np.stack([seg.fore, axis_side, seg.up])))
+                motion = np.array([seg.along @ seg.fore, seg.along @ axis_side, seg.along @ seg.up])
                 draws.append(
                     _Draw(
                         segment=seg,
                         side=side,
                         axis_side=axis_side,
+                        motion=motion,
                         frame_sign=det,
                         warp=warp,
                         beam_axis=sonar.tilt + sign * roll,
@@ -514,7 +520,8 @@ class RasterRenderer:
         rho_lo_all, rho_hi_all = draw.warp.rho_range
         uniforms = {
             "seg_origin": tuple((seg.origin - origin).astype("f4")),
-            "axis_along": tuple(seg.along),
+            "axis_along": tuple(seg.fore),
+            "motion": tuple(draw.motion),
             "axis_side": tuple(draw.axis_side),
             "axis_up": tuple(seg.up),
             "warp_h": draw.warp.h,
@@ -614,10 +621,11 @@ class RasterRenderer:
         )
         f = geo["faces_cpu"][candidates]
         rel = geo["vertices"][f.reshape(-1)] - start
-        t = _dot(rel, seg.along)
-        side = _dot(rel, draw.axis_side)
+        shear = seg.shear  # (travel, starboard, up) of each corner relative to its fan
+        t = _dot(rel, shear[0])
+        side = _dot(rel, shear[1] * float(draw.axis_side @ seg.starboard))
         near = (t >= t_lo) & (t <= t_hi) & (side >= -margin)
-        near &= np.hypot(side, _dot(rel, seg.up)) <= reach
+        near &= np.hypot(side, _dot(rel, shear[2])) <= reach
         ids = candidates[near.reshape(-1, 3).any(axis=1)]
         if len(ids) > 0.5 * geo["n_faces"]:
             return geo

@@ -48,8 +48,10 @@ class _Frame:
 
     Attributes
     ----------
-    origin, along, starboard, up : ndarray, shape (3,)
-        First ping position (local metres) and the segment's orthonormal axes.
+    origin, along : ndarray, shape (3,)
+        First ping position (local metres) and the direction of travel.
+    fore, starboard, up : ndarray, shape (3,)
+        The fan's orthonormal axes (see :class:`~sonar_raster.trajectory.Segment`).
     spacing, width : float
         Ping spacing and per-ping along-track width, metres (spacing 0: stationary).
     first, count : int
@@ -68,6 +70,8 @@ class _Frame:
     count: int
     roll: np.ndarray
     patch_size: float
+    fore: np.ndarray
+    shear: np.ndarray
 
     @property
     def t_bounds(self) -> tuple[float, float]:
@@ -78,8 +82,16 @@ class _Frame:
 
     @property
     def axes(self) -> np.ndarray:
-        """Rows along, starboard, up; shape (3, 3)."""
-        return np.stack([self.along, self.starboard, self.up])
+        """Map to (travel, starboard, up) fan coordinates, shape (3, 3) (``Segment.shear``).
+
+        Orthonormal, rows along, starboard, up, unless the vehicle crabs or pitches.
+        """
+        return self.shear
+
+    @property
+    def fan_axes(self) -> np.ndarray:
+        """Rows fore, starboard, up: the fan's orthonormal frame, shape (3, 3)."""
+        return np.stack([self.fore, self.starboard, self.up])
 
 
 @dataclass(frozen=True)
@@ -238,6 +250,8 @@ def _frame(
         count=segment.count,
         roll=trajectory.roll[sl],
         patch_size=patch_size,
+        fore=segment.fore,
+        shear=segment.shear,
     )
 
 
@@ -283,7 +297,7 @@ def _render_segment(
     ids = np.flatnonzero(overlaps(proj, bounds))
     if len(ids) == 0:
         return
-    normal = surface.normal[ids] @ frame.axes.T
+    normal = surface.normal[ids] @ frame.fan_axes.T
     for runs in runs_in_box(
         proj, surface.n_sub, ids, bounds, row_block=_ROW_CHUNK, chunk=_PATCH_CHUNK
     ):

@@ -1,7 +1,10 @@
-"""Trajectory: ping positions and headings, and their split into near-straight segments.
+"""Trajectory: ping poses, and their split into near-straight segments.
 
-Heading is a compass angle: 0 points along +y (north), 90 degrees along +x (east). The
-along-track axis of a ping is its heading; across-track is positive to starboard.
+Heading is a compass angle: 0 points along +y (north), 90 degrees along +x (east); pitch is
+positive nose up; roll positive starboard down. The sonar's fan of beams is the plane through
+the transducer perpendicular to the vehicle's fore axis (heading and pitch), so a vehicle that
+crabs (heading differs from its course over ground) or pitches sweeps tilted fans along its
+track. Across-track is positive to starboard.
 """
 
 from __future__ import annotations
@@ -22,6 +25,16 @@ def heading_axes(heading: float) -> tuple[np.ndarray, np.ndarray]:
     return along, starboard
 
 
+def fore_axis(heading: float, pitch: float) -> np.ndarray:
+    """The vehicle's fore axis (unit) for a compass heading and a nose-up pitch, radians."""
+    c = math.cos(pitch)
+    return np.array([math.sin(heading) * c, math.cos(heading) * c, math.sin(pitch)])
+
+
+#: Largest angle between the fan's normal (fore axis) and the direction of travel.
+MAX_CRAB_DEG = 60.0
+
+
 @dataclass(frozen=True)
 class Segment:
     """Pings on one straight line at equal spacing, rendered by one draw per side.
@@ -32,8 +45,12 @@ class Segment:
         Ping indices ``first .. first + count - 1`` of the trajectory.
     origin : ndarray, shape (3,), float64
         Position of the first ping, world metres.
-    along, starboard, up : ndarray, shape (3,), float64
-        Orthonormal frame: along-track, to starboard, and up (z-ish).
+    along : ndarray, shape (3,), float64
+        Unit direction of travel (the heading's direction for a stationary sonar).
+    fore, starboard, up : ndarray, shape (3,), float64
+        The fan's orthonormal frame: the fore axis (normal of the fan plane, from the mean
+        heading and pitch), to starboard (horizontal) and up, both in the fan plane. Without
+        crab or pitch on a level track, ``fore == along``.
     spacing : float
         Distance between consecutive pings along ``along``, metres; 0 when the pings coincide
         (a stationary sonar: every ping gives the same row).
@@ -50,6 +67,25 @@ class Segment:
     up: np.ndarray
     spacing: float
     width: float
+    fore: np.ndarray
+
+    @property
+    def shear(self) -> np.ndarray:
+        """Map from world offsets to (travel, starboard, up) fan coordinates, shape (3, 3).
+
+        A point ``d`` (relative to the origin) lies in the fan of the ping at travel
+        ``u = d·fore / along·fore`` metres; its offset from that ping, ``d − u along``, lies in
+        the fan plane with components ``starboard`` and ``up``. The rows of the matrix give
+        ``(u, (d − u along)·starboard, (d − u along)·up)``.
+        """
+        k = self.fore / float(self.along @ self.fore)
+        return np.stack(
+            [
+                k,
+                self.starboard - float(self.along @ self.starboard) * k,
+                self.up - float(self.along @ self.up) * k,
+            ]
+        )
 
 
 @dataclass(frozen=True)
@@ -64,25 +100,33 @@ class Trajectory:
         Compass headings in radians.
     roll : ndarray, shape (n,), float64
         Roll in radians, positive starboard down; it tilts the beam on each side.
+    pitch : ndarray, shape (n,), float64
+        Pitch in radians, positive nose up; it tilts the fan forward (default 0: level).
     """
 
     positions: np.ndarray
     headings: np.ndarray
     roll: np.ndarray
+    pitch: np.ndarray | float = 0.0
 
     def __post_init__(self) -> None:
         p = np.asarray(self.positions, dtype=np.float64).reshape(-1, 3)
         h = np.asarray(self.headings, dtype=np.float64).reshape(-1)
         r = np.broadcast_to(np.asarray(self.roll, dtype=np.float64), h.shape).copy()
+        t = np.broadcast_to(np.asarray(self.pitch, dtype=np.float64), h.shape).copy()
         if len(p) == 0:
             raise SonarRasterError("the trajectory has no pings; use at least one ping")
         if len(h) != len(p):
             raise SonarRasterError("trajectory positions and headings differ in length")
-        if not (np.all(np.isfinite(p)) and np.all(np.isfinite(h)) and np.all(np.isfinite(r))):
+        finite = np.all(np.isfinite(p)) and np.all(np.isfinite(h))
+        if not (finite and np.all(np.isfinite(r)) and np.all(np.isfinite(t))):
             raise SonarRasterError("the trajectory has NaN or infinite positions or angles")
+        if np.any(np.abs(t) >= math.radians(80.0)):
+            raise SonarRasterError("pitch must be within ±80 degrees for a side-looking sonar")
         object.__setattr__(self, "positions", p)
         object.__setattr__(self, "headings", h)
         object.__setattr__(self, "roll", r)
+        object.__setattr__(self, "pitch", t)
 
     @property
     def n_pings(self) -> int:
@@ -105,7 +149,11 @@ class Trajectory:
 
     @classmethod
     def from_csv(cls, path: str) -> Trajectory:
-        """Read poses from a CSV with a header naming ``x, y, z, heading_deg`` [, ``roll_deg``]."""
+        """Read poses from a CSV with a header naming ``x, y, z, heading_deg``.
+
+        Optional columns ``roll_deg`` and ``pitch_deg`` (default 0). Headings that differ from
+        the course over ground are crab: the fans follow the heading, not the course.
+        """
         try:
             data: Any = np.genfromtxt(path, delimiter=",", names=True, dtype=np.float64, ndmin=1)
         except (OSError, ValueError) as exc:
@@ -115,8 +163,9 @@ class Trajectory:
         if missing:
             raise SonarRasterError(f"{path}: trajectory CSV lacks column(s) {', '.join(missing)}")
         roll = np.radians(data["roll_deg"]) if "roll_deg" in names else np.zeros(len(data))
+        pitch = np.radians(data["pitch_deg"]) if "pitch_deg" in names else np.zeros(len(data))
         pos = np.stack([data["x"], data["y"], data["z"]], axis=1)
-        return cls(pos, np.radians(data["heading_deg"]), roll)
+        return cls(pos, np.radians(data["heading_deg"]), roll, pitch)
 
     @property
     def typical_spacing(self) -> float:
@@ -127,12 +176,14 @@ class Trajectory:
         d = d[d > 1e-9]
         return float(np.median(d)) if len(d) else 1.0
 
-    def segments(self, tolerance: float, max_count: int = 16384) -> list[Segment]:
-        """Split the pings into straight, evenly spaced runs.
+    def segments(
+        self, tolerance: float, max_count: int = 16384, angle_tolerance: float | None = None
+    ) -> list[Segment]:
+        """Split the pings into straight, evenly spaced runs with one fan orientation.
 
         A ping joins a segment while its position lies within ``tolerance`` metres of the
-        segment's uniform line, its heading within 5 degrees and its roll within 0.5 degrees of
-        the others; a lone ping forms its own segment.
+        segment's uniform line, its heading and pitch within ``angle_tolerance`` and its roll
+        within 0.5 degrees of the others; a lone ping forms its own segment.
 
         Parameters
         ----------
@@ -140,34 +191,38 @@ class Trajectory:
             Largest allowed position error, metres (a fraction of the range bin is sensible).
         max_count : int
             Most pings per segment (the framebuffer height limit).
+        angle_tolerance : float, optional
+            Largest spread of heading and of pitch in a segment, radians (each segment's fans
+            take the mean); default 0.5 degrees.
         """
+        angle = math.radians(0.5) if angle_tolerance is None else float(angle_tolerance)
         out: list[Segment] = []
         start = 0
         n = self.n_pings
         while start < n:
-            end = self._longest_run(start, tolerance, max_count)
+            end = self._longest_run(start, tolerance, max_count, angle)
             out.append(self._make_segment(start, end))
             start = end
         return out
 
-    def _fits(self, start: int, end: int, tolerance: float) -> bool:
+    def _fits(self, start: int, end: int, tolerance: float, angle: float) -> bool:
         p = self.positions[start:end]
         k = np.arange(end - start)[:, None] / max(end - start - 1, 1)
         line = p[0] + k * (p[-1] - p[0])
         if np.max(np.linalg.norm(p - line, axis=1)) > tolerance:
             return False
         dh = np.angle(np.exp(1j * (self.headings[start:end] - self.headings[start])))
-        if np.max(np.abs(dh)) >= math.radians(5.0):
+        if np.ptp(dh) > angle or np.ptp(self.pitch[start:end]) > angle:
             return False
         roll = self.roll[start:end]
         return bool(np.ptp(roll) <= math.radians(0.5))
 
-    def _longest_run(self, start: int, tolerance: float, max_count: int) -> int:
+    def _longest_run(self, start: int, tolerance: float, max_count: int, angle: float) -> int:
         n = min(self.n_pings, start + max_count)
         good, step = start + 1, 1
         while good < n:
             trial = min(n, good + step)
-            if not self._fits(start, trial, tolerance):
+            if not self._fits(start, trial, tolerance, angle):
                 break
             good, step = trial, step * 2
         else:
@@ -175,7 +230,7 @@ class Trajectory:
         lo, hi = good, min(n, good + step)
         while hi - lo > 1:
             mid = (lo + hi) // 2
-            lo, hi = (mid, hi) if self._fits(start, mid, tolerance) else (lo, mid)
+            lo, hi = (mid, hi) if self._fits(start, mid, tolerance, angle) else (lo, mid)
         return lo
 
     def _make_segment(self, start: int, end: int) -> Segment:
@@ -192,8 +247,19 @@ class Trajectory:
         horiz = math.hypot(along[0], along[1])
         if horiz < 1e-6:
             raise SonarRasterError("a vertical trajectory segment has no side-looking geometry")
-        starboard = np.cross(along, [0.0, 0.0, 1.0])
+        heading = self.headings[start:end]
+        mean_heading = float(np.angle(np.mean(np.exp(1j * heading))))
+        fore = fore_axis(mean_heading, float(np.mean(self.pitch[start:end])))
+        if spacing == 0.0:
+            along = fore
+        elif float(along @ fore) < math.cos(math.radians(MAX_CRAB_DEG)):
+            raise SonarRasterError(
+                f"pings {start}..{end - 1}: the heading is more than {MAX_CRAB_DEG:.0f} degrees "
+                "off the direction of travel; check the headings (compass degrees, 0 = +y) "
+                "and that the pings are in time order"
+            )
+        starboard = np.cross(fore, [0.0, 0.0, 1.0])
         starboard /= np.linalg.norm(starboard)
-        up = np.cross(starboard, along)
+        up = np.cross(starboard, fore)
         width = spacing if spacing > 0 else self.typical_spacing
-        return Segment(start, count, p[0].copy(), along, starboard, up, spacing, width)
+        return Segment(start, count, p[0].copy(), along, starboard, up, spacing, width, fore)
