@@ -29,14 +29,19 @@ def subdivision_counts(vertices: np.ndarray, faces: np.ndarray, max_edge: float)
     max_edge : float
         Longest edge allowed after subdivision, metres.
     """
-    corners = [vertices[faces[:, k]] for k in range(3)]
-    longest2 = np.zeros(len(faces))
-    for a, b in ((0, 1), (1, 2), (2, 0)):
-        d = corners[b] - corners[a]
-        np.maximum(
-            longest2, d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2], out=longest2
-        )
-    return np.maximum(1, np.ceil(np.sqrt(longest2) / max_edge)).astype(np.int64)
+    counts = np.empty(len(faces), dtype=np.int64)
+    block = 1 << 20  # faces at a time: bounds the temporaries for huge scenes
+    for s in range(0, len(faces), block):
+        f = faces[s : s + block]
+        corners = [vertices[f[:, k]] for k in range(3)]
+        longest2 = np.zeros(len(f))
+        for a, b in ((0, 1), (1, 2), (2, 0)):
+            d = corners[b] - corners[a]
+            np.maximum(
+                longest2, d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2], out=longest2
+            )
+        counts[s : s + block] = np.maximum(1, np.ceil(np.sqrt(longest2) / max_edge))
+    return counts
 
 
 def subdivide(tri: np.ndarray, counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -24,15 +24,26 @@ class TileIndex:
     """
 
     def __init__(self, vertices: np.ndarray, faces: np.ndarray, size: float):
-        corner = vertices[faces[:, 0], :2] if len(faces) else np.zeros((0, 2))
         self.size = float(size)
-        self.lo = corner.min(axis=0) if len(corner) else np.zeros(2)
-        cells = np.floor((corner - self.lo) / self.size).astype(np.int64)
-        self.shape = (cells.max(axis=0) + 1) if len(cells) else np.ones(2, dtype=np.int64)
-        nx = int(self.shape[0])
-        key = cells[:, 1] * nx + cells[:, 0]
-        self.order = np.argsort(key, kind="stable")
-        n_tiles = int(self.shape[0] * self.shape[1])
+        first = faces[:, 0]
+        block = 1 << 20
+        self.lo, hi = np.zeros(2), np.zeros(2)
+        if len(faces):
+            spans = [_span(vertices[first[a : a + block], :2]) for a in range(0, len(faces), block)]
+            self.lo = np.min([lo for lo, _ in spans], axis=0)
+            hi = np.max([h for _, h in spans], axis=0)
+        self.shape = np.floor((hi - self.lo) / self.size).astype(np.int64) + 1
+        nx, n_tiles = int(self.shape[0]), int(self.shape[0] * self.shape[1])
+        # Tile of each face's first corner, a block at a time (huge scenes stay in memory).
+        key = np.empty(len(faces), dtype=np.int32 if n_tiles < 2**31 else np.int64)
+        for a in range(0, len(faces), block):
+            xy = vertices[first[a : a + block], :2].astype(np.float64)
+            cell = np.floor((xy - self.lo) / self.size).astype(np.int64)
+            np.minimum(cell, self.shape - 1, out=cell)
+            key[a : a + block] = cell[:, 1] * nx + cell[:, 0]
+        order = np.argsort(key, kind="stable")
+        self.order = order.astype(np.int32) if len(faces) < 2**31 else order
+        del order
         self.offsets = np.searchsorted(key[self.order], np.arange(n_tiles + 1))
 
     def query(
@@ -51,3 +62,7 @@ class TileIndex:
             for iy in range(iy0, iy1 + 1)
         ]
         return np.sort(np.concatenate(parts))
+
+
+def _span(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    return xy.min(axis=0).astype(np.float64), xy.max(axis=0).astype(np.float64)

@@ -176,43 +176,59 @@ class RasterRenderer:
         self._scene = None
 
     def _upload(self, scene: Scene, origin: np.ndarray, max_edge: float) -> None:
+        """Shift the scene to ``origin`` (float64), subdivide long triangles, upload vertices.
+
+        Memory is kept near one float32 copy of the vertices: the index and reflectivity
+        buffers of the whole scene are made only if a draw needs the whole scene, and labels
+        only if asked for.
+        """
         key = (tuple(origin), max_edge)
         if self._scene is scene and key == self._scene_key:
             return
         self._release_geometry()
-        vertices = scene.vertices - origin  # float64 shift, then float32
-        faces, refl = scene.faces, scene.reflectivity
-        label = scene.object_id.astype(np.uint32) + 1  # 0 is kept for "no return"
+        vertices = _local_float32(scene.vertices, origin)
+        faces = scene.faces
+        source = None  # scene face of each uploaded face, when subdivision reordered them
         counts = subdivision_counts(vertices, faces, max_edge)
         big = counts > 1
         if big.any():
-            pieces, parent = subdivide(vertices[faces[big]], counts[big])
-            keep = faces[~big]
-            extra = pieces.reshape(-1, 3)
+            corners = vertices[faces[big]].astype(np.float64)
+            pieces, parent = subdivide(corners, counts[big])
+            extra = pieces.reshape(-1, 3).astype(np.float32)
+            new_faces = len(vertices) + np.arange(len(extra)).reshape(-1, 3)
             vertices = np.concatenate([vertices, extra])
-            new_faces = len(scene.vertices) + np.arange(len(extra)).reshape(-1, 3)
-            faces = np.concatenate([keep, new_faces])
-            refl = np.concatenate([refl[~big], refl[big][parent]])
-            label = np.concatenate([label[~big], label[big][parent]])
+            faces = np.concatenate([faces[~big], new_faces.astype(faces.dtype)])
+            source = np.concatenate([np.flatnonzero(~big), np.flatnonzero(big)[parent]])
             log.info("subdivided %d large triangles into %d", int(big.sum()), len(pieces))
-        ctx = self.ctx
-        vbo = ctx.buffer(vertices.astype("f4").tobytes())
-        ibo = ctx.buffer(faces.astype("u4").tobytes())
-        face_buf = ctx.buffer(refl.astype("f4").tobytes())
+        refl = scene.reflectivity if source is None else scene.reflectivity[source]
         self._geometry = {
             "vertices": vertices,
             "faces_cpu": faces,
             "refl_cpu": refl,
-            "label_cpu": label,
+            "source": source,
             "max_edge": max_edge,
-            "vbo": vbo,
-            "ibo": ibo,
-            "faces": face_buf,
+            "vbo": self.ctx.buffer(vertices),
             "n_faces": len(faces),
             "r_max": float(refl.max(initial=0.0)),
         }
         self._scene_key = key
         self._scene = scene
+
+    def _whole_scene(self) -> dict[str, Any]:
+        """The uploaded geometry with its whole-scene index and reflectivity buffers."""
+        geo = self._geometry
+        if "ibo" not in geo:
+            geo["ibo"] = self.ctx.buffer(geo["faces_cpu"].astype("u4"))
+            geo["faces"] = self.ctx.buffer(geo["refl_cpu"].astype("f4"))
+        return geo
+
+    def _face_labels(self, ids: np.ndarray | None) -> np.ndarray:
+        """Labels (object id + 1; 0 means "no return") of uploaded faces ``ids`` (None: all)."""
+        source = self._geometry["source"]
+        if source is not None:
+            ids = source if ids is None else source[ids]
+        object_id = self._scene.object_id if self._scene is not None else np.zeros(0, np.int32)
+        return (object_id if ids is None else object_id[ids]).astype(np.uint32) + 1
 
     def _vao(self, geometry: dict[str, Any], labels: bool) -> Any:
         """The vertex array of ``geometry`` for the pass-1 program (made on first use)."""
@@ -231,9 +247,8 @@ class RasterRenderer:
     def _labels_buffer(self, geometry: dict[str, Any], ids: np.ndarray | None) -> Any:
         """Per-face labels (object id + 1) as a storage buffer, made on first use."""
         if "labels" not in geometry:
-            label = self._geometry["label_cpu"]
-            data = label if ids is None else label[ids]
-            geometry["labels"] = self.ctx.buffer(data.astype("u4").tobytes() or b"\0" * 4)
+            data = self._face_labels(ids)
+            geometry["labels"] = self.ctx.buffer(data if len(data) else b"\0" * 4)
         return geometry["labels"]
 
     def _release_targets(self) -> None:
@@ -391,6 +406,8 @@ class RasterRenderer:
             max_edge = self.settings.max_edge or 20.0 * sonar.range_bin
             self._upload(scene, origin, max_edge)
             plan = self._plan(scene, sonar, trajectory)
+            if self.settings.cull:  # built now, before the sample targets take their memory
+                self._tile_index(self._reach(sonar))
         for first in range(0, trajectory.n_pings, int(chunk_pings)):
             last = min(trajectory.n_pings, first + int(chunk_pings))
             draws = [d for d in (_clip(d, first, last) for d in plan) if d is not None]
@@ -599,14 +616,14 @@ class RasterRenderer:
         """
         geo = self._geometry
         if not self.settings.cull:
-            return geo
+            return self._whole_scene()
         seg = draw.segment
         # Corner tests widened by the longest edge, so a triangle whose corners are all outside
         # but which crosses the window is still kept.
         margin = geo["max_edge"]
         t_lo = -0.5 * seg.width - margin
         t_hi = (seg.count - 1) * seg.spacing + 0.5 * seg.width + margin
-        reach = sonar.max_range + 8.0 * sonar.range_bin + margin
+        reach = self._reach(sonar)
         start = seg.origin - origin
         corners = np.array(
             [start + a * seg.along + b * draw.axis_side for a in (t_lo, t_hi) for b in (0, reach)]
@@ -628,10 +645,11 @@ class RasterRenderer:
         near &= np.hypot(side, _dot(rel, shear[2])) <= reach
         ids = candidates[near.reshape(-1, 3).any(axis=1)]
         if len(ids) > 0.5 * geo["n_faces"]:
-            return geo
-        faces = geo["faces_cpu"][ids]
-        ibo = self.ctx.buffer(faces.astype("u4").tobytes() or b"\0" * 12)
-        refl = self.ctx.buffer(geo["refl_cpu"][ids].astype("f4").tobytes() or b"\0" * 4)
+            return self._whole_scene()
+        faces = geo["faces_cpu"][ids].astype("u4")
+        refl = geo["refl_cpu"][ids].astype("f4")
+        ibo = self.ctx.buffer(faces if len(ids) else b"\0" * 12)
+        refl = self.ctx.buffer(refl if len(ids) else b"\0" * 4)
         return {
             "ibo": ibo,
             "faces": refl,
@@ -640,6 +658,10 @@ class RasterRenderer:
             "empty": len(ids) == 0,
             "subset": True,
         }
+
+    def _reach(self, sonar: Sonar) -> float:
+        """Distance from the track within which a triangle can reach the image, metres."""
+        return sonar.max_range + 8.0 * sonar.range_bin + self._geometry["max_edge"]
 
     def _tile_index(self, reach: float) -> TileIndex:
         """The tile index of the uploaded scene, tiles about a quarter of the reach (cached)."""
@@ -696,6 +718,15 @@ def _clip(draw: _Draw, first: int, last: int) -> _Draw | None:
     piece = replace(seg, first=lo, count=hi - lo, origin=seg.origin + shift * seg.along)
     rows = 1 if draw.rows == 1 else hi - lo
     return replace(draw, segment=piece, rows=rows)
+
+
+def _local_float32(vertices: np.ndarray, origin: np.ndarray) -> np.ndarray:
+    """``vertices - origin`` in float64, stored as float32, a block at a time."""
+    out = np.empty(vertices.shape, dtype=np.float32)
+    block = 1 << 20
+    for a in range(0, len(vertices), block):
+        out[a : a + block] = vertices[a : a + block] - origin
+    return out
 
 
 def _masks(write: bool, n_targets: int) -> Any:

@@ -52,7 +52,7 @@ class Scene:
     ----------
     vertices : ndarray, shape (n, 3), float64
         World coordinates in metres.
-    faces : ndarray, shape (m, 3), int64
+    faces : ndarray, shape (m, 3), int32 (int64 beyond 2³¹ vertices)
         Triangle vertex indices; no degenerate triangles.
     reflectivity : ndarray, shape (m,), float64
         Reflectivity R of each face.
@@ -116,18 +116,32 @@ def _bounds(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return np.stack([v.min(axis=0), v.max(axis=0)])
 
 
+#: Faces per block of the validity test (bounds its temporaries to about 100 MB).
+_FACE_BLOCK = 1 << 20
+
+
 def _clean_faces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Boolean mask of faces that are non-degenerate (positive area, distinct corners)."""
-    v0 = vertices[faces[:, 0]]
-    e1 = vertices[faces[:, 1]] - v0
-    e2 = vertices[faces[:, 2]] - v0
-    # |e1 x e2|², written out by component (np.cross and a (m, 3, 3) gather are slower).
-    cx = e1[:, 1] * e2[:, 2] - e1[:, 2] * e2[:, 1]
-    cy = e1[:, 2] * e2[:, 0] - e1[:, 0] * e2[:, 2]
-    cz = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
-    area2 = cx * cx + cy * cy + cz * cz
     edge2 = max(float(np.ptp(vertices, axis=0).max()) ** 2, 1e-300) if len(vertices) else 1.0
-    return area2 > (_DEGENERATE_REL_AREA * edge2) ** 2
+    keep = np.empty(len(faces), dtype=bool)
+    for a in range(0, len(faces), _FACE_BLOCK):
+        f = faces[a : a + _FACE_BLOCK]
+        v0 = vertices[f[:, 0]]
+        e1 = vertices[f[:, 1]] - v0
+        e2 = vertices[f[:, 2]] - v0
+        # |e1 x e2|², written out by component (np.cross and a (m, 3, 3) gather are slower).
+        cx = e1[:, 1] * e2[:, 2] - e1[:, 2] * e2[:, 1]
+        cy = e1[:, 2] * e2[:, 0] - e1[:, 0] * e2[:, 2]
+        cz = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+        keep[a : a + _FACE_BLOCK] = (
+            cx * cx + cy * cy + cz * cz > (_DEGENERATE_REL_AREA * edge2) ** 2
+        )
+    return keep
+
+
+def _joined(arrays: list[np.ndarray]) -> np.ndarray:
+    """Concatenate, without a copy when there is only one array (large seabeds)."""
+    return np.ascontiguousarray(arrays[0]) if len(arrays) == 1 else np.concatenate(arrays)
 
 
 def build_scene(parts: list[MeshPart]) -> Scene:
@@ -154,9 +168,13 @@ def build_scene(parts: list[MeshPart]) -> Scene:
     verts, faces, refl, ids, names, ground = [], [], [], [], [], []
     offset = 0
     dropped = 0
+    n_vertices = sum(len(np.asarray(p.vertices).reshape(-1, 3)) for p in parts)
+    index_type = np.int32 if n_vertices < 2**31 else np.int64  # half the memory of int64
     for k, part in enumerate(parts):
         v = np.asarray(part.vertices, dtype=np.float64).reshape(-1, 3)
-        f = np.asarray(part.faces, dtype=np.int64).reshape(-1, 3)
+        f = np.asarray(part.faces).reshape(-1, 3)
+        if f.dtype.kind not in "iu":
+            raise SonarRasterError(f"object '{part.name}' has non-integer face indices")
         if not np.all(np.isfinite(v)):
             raise SonarRasterError(
                 f"object '{part.name}' has NaN or infinite vertex coordinates; fix the model file"
@@ -173,9 +191,11 @@ def build_scene(parts: list[MeshPart]) -> Scene:
             )
         keep = _clean_faces(v, f) if len(f) else np.zeros(0, dtype=bool)
         dropped += int((~keep).sum())
-        f, r = f[keep], r[keep]
+        if not keep.all():
+            f, r = f[keep], r[keep]
+        f = f.astype(index_type, copy=False)
         verts.append(v)
-        faces.append(f + offset)
+        faces.append(f + index_type(offset) if offset else f)
         refl.append(r)
         ids.append(np.full(len(f), k, dtype=np.int32))
         names.append(part.name)
@@ -186,17 +206,17 @@ def build_scene(parts: list[MeshPart]) -> Scene:
         offset += len(v)
     if dropped:
         log.warning("dropped %d degenerate or zero-area triangles", dropped)
-    all_faces = np.concatenate(faces) if faces else np.zeros((0, 3), dtype=np.int64)
+    all_faces = _joined(faces) if faces else np.zeros((0, 3), dtype=index_type)
     if len(all_faces) == 0:
         raise SonarRasterError("the scene has no triangles; give a model or a seabed to render")
-    vertices = np.concatenate(verts)
+    vertices = _joined(verts)
     bounds = _bounds(vertices, all_faces)
     ground_z = float(np.mean(ground)) if ground else float(bounds[0, 2])
     return Scene(
         vertices=vertices,
         faces=all_faces,
-        reflectivity=np.concatenate(refl),
-        object_id=np.concatenate(ids),
+        reflectivity=_joined(refl),
+        object_id=_joined(ids),
         names=tuple(names),
         ground_z=ground_z,
         bounds=bounds,

@@ -85,7 +85,7 @@ def render_survey(
     trajectory: Trajectory,
     outputs: list[str | os.PathLike],
     *,
-    chunk_pings: int = 1024,
+    chunk_pings: int = 512,
     backend: str | None = None,
     settings: RasterSettings | None = None,
     bit_depth: int = 8,

@@ -10,7 +10,7 @@ track. Across-track is positive to starboard.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -107,7 +107,7 @@ class Trajectory:
     positions: np.ndarray
     headings: np.ndarray
     roll: np.ndarray
-    pitch: np.ndarray | float = 0.0
+    pitch: np.ndarray = field(default_factory=lambda: np.zeros(1))  # broadcast to every ping
 
     def __post_init__(self) -> None:
         p = np.asarray(self.positions, dtype=np.float64).reshape(-1, 3)

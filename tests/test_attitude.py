@@ -134,3 +134,15 @@ def test_scene_file_sets_crab_pitch_and_roll(tmp_path):
     assert traj.roll == pytest.approx(np.radians(np.full(5, 2.0)))
     # The course stays east (heading_deg); the vehicle points 7 degrees right of it.
     assert np.diff(traj.positions[:, 0]) == pytest.approx(np.full(4, 0.2))
+
+
+def test_a_diving_track_leaves_no_empty_rows(gl):
+    """Regression: a straight track descending 0.09 m per 0.12 m ping once left a quarter of
+    its rows empty (the fan was tilted with the track but the rows were not)."""
+    scene = build_scene([rect_seabed(-40.0, 40.0, -40.0, 40.0)])
+    sonar = Sonar(max_range=20.0, range_bin=0.05)
+    n = 40
+    pos = np.column_stack([np.zeros(n), 0.12 * np.arange(n), 12.0 - 0.09 * np.arange(n)])
+    image = gl.render(scene, sonar, Trajectory(pos, np.zeros(n), 0.0))
+    for side in sonar.sides:
+        assert np.all(image.sides[side].sum(axis=1) > 0), f"{side}: empty rows"

@@ -6,7 +6,7 @@ new path and once with a baseline beside it:
 - triangles (10⁴ … 2·10⁷, a long seabed of which the track sees a fixed stretch): culled draws
   (tile index) against drawing the whole scene every draw (``RasterSettings(cull=False)``);
 - pings (10² … 10⁵ over the 2·10⁷-triangle seabed, 4096 bins): the streamed survey
-  (``render_survey``, blocks of 1024 pings written to EXR as they finish) against rendering the
+  (``render_survey``, blocks of 512 pings written to EXR as they finish) against rendering the
   whole track into memory and writing it (up to 10⁴ pings; beyond that the baseline is the
   problem being solved);
 - bins (512 … 8192, 1000 pings): culled against unculled.
@@ -69,7 +69,7 @@ def run_case(case: dict) -> dict:
 
         with tempfile.TemporaryDirectory() as tmp:
             _, counters = render_survey(
-                scene, sonar, traj, [Path(tmp) / "s.exr"], chunk_pings=1024, settings=settings
+                scene, sonar, traj, [Path(tmp) / "s.exr"], chunk_pings=512, settings=settings
             )
     else:
         with RasterRenderer(settings=settings) as r:
