@@ -8,6 +8,7 @@ documented in the README ("Scene description files").
 
 from __future__ import annotations
 
+import logging
 import math
 import sys
 from dataclasses import dataclass, field, replace
@@ -18,9 +19,11 @@ import numpy as np
 
 from .errors import SonarRasterError
 from .scene import MeshPart, Scene, build_scene
-from .seabed import Heightfield, make_seabed
+from .seabed import Heightfield, level_of_detail, make_seabed
 from .sonar import SIDES, BeamPattern, Sonar
 from .trajectory import Trajectory
+
+log = logging.getLogger(__name__)
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -43,6 +46,10 @@ class SceneSetup:
     altitude: float
     pulse: Any = None  # coherent.Pulse from [pulse]; None: the default for the sonar
     coherent: dict = field(default_factory=dict)  # render_coherent options from [coherent]
+    effects: Any = None  # effects.Effects from [effects]; None: no sensor effects
+    notes: dict = field(
+        default_factory=dict
+    )  # what loading changed (level of detail), for metadata
 
 
 @dataclass(frozen=True)
@@ -215,15 +222,70 @@ def _coherent(table: dict, where: str) -> dict:
     return out
 
 
+# -- sensor effects and materials --------------------------------------------------------------
+def _reflectivity(table: dict, default: Any, where: str) -> Any:
+    """'reflectivity' (a number) or 'material' (a sediment name, see sediments.py)."""
+    material = _take(table, "material", None, str, where)
+    value = _take(table, "reflectivity", None, (int, float), where)
+    if material is None:
+        return default if value is None else value
+    if value is not None:
+        raise SonarRasterError(f"{where}: give 'reflectivity' or 'material', not both")
+    from .sediments import material_reflectivity
+
+    return material_reflectivity(material)
+
+
+def _effects(table: dict, base: Path, where: str) -> Any:
+    """[effects]: fields of effects.Effects; tvg_curve may name a CSV next to the scene."""
+    if not table:
+        return None
+    from dataclasses import fields as dataclass_fields
+
+    from .effects import Effects, load_tvg_curve
+
+    names = {f.name for f in dataclass_fields(Effects)}
+    _no_leftovers({k: v for k, v in table.items() if k not in names}, f"{where} [effects]")
+    curve = table.get("tvg_curve")
+    if isinstance(curve, str):
+        table["tvg_curve"] = load_tvg_curve(str(base / curve))
+    elif isinstance(curve, list):
+        table["tvg_curve"] = tuple(tuple(row) if isinstance(row, list) else row for row in curve)
+    try:
+        return Effects(**table)
+    except TypeError as exc:
+        raise SonarRasterError(f"{where} [effects]: {exc}") from None
+
+
 # -- seabed and objects ------------------------------------------------------------------------
-def _seabed(table: dict, base: Path, where: str) -> tuple[Heightfield, MeshPart] | None:
+#: Default level of detail: seabed grids finer than this many range bins are drawn coarser.
+DEFAULT_LOD_BINS = 0.5
+
+
+def _seabed(
+    table: dict, base: Path, where: str, sonar: Sonar, notes: dict
+) -> tuple[Heightfield, MeshPart] | None:
     if not table:
         return None
     kind = table.pop("kind", "flat")
-    reflectivity = table.pop("reflectivity", DEFAULT_SEABED_REFLECTIVITY)
+    reflectivity = _reflectivity(table, DEFAULT_SEABED_REFLECTIVITY, f"{where} [seabed]")
+    lod = table.pop("lod", True)
+    if isinstance(lod, bool):
+        lod_bins = DEFAULT_LOD_BINS if lod else 0.0
+    elif isinstance(lod, (int, float)) and math.isfinite(lod) and lod > 0:
+        lod_bins = float(lod)
+    else:
+        raise SonarRasterError(
+            f"{where} [seabed]: lod must be true, false or a cell size in range bins (> 0)"
+        )
     if "path" in table:
         table["path"] = str(base / str(table["path"]))
     field = make_seabed(str(kind), **table)
+    if lod_bins > 0:
+        field, report = level_of_detail(field, lod_bins * sonar.range_bin)
+        if report:
+            notes["seabed_lod"] = report
+            log.info("seabed level of detail: %s", report)
     return field, field.mesh(reflectivity=float(reflectivity), name="seabed")
 
 
@@ -287,7 +349,7 @@ def _object(spec: dict, base: Path, seabed: Heightfield | None, k: int) -> list[
         rotation = rotation @ _rotation(np.array([90.0, 0.0, 0.0]))
     scale = float(_take(spec, "scale", 1.0, number, where))
     sink = float(_take(spec, "sink", 0.0, number, where))
-    reflectivity = _take(spec, "reflectivity", None, number, where)
+    reflectivity = _reflectivity(spec, None, where)
     name = _take(spec, "name", None, str, where)
     _no_leftovers(spec, where)
     if not scale > 0:
@@ -328,6 +390,9 @@ def _trajectory(
     heading = float(_take(table, "heading_deg", 0.0, number, where))
     spacing = float(_take(table, "spacing", 0.1, number, where))
     pings = _take(table, "pings", 200, int, where)
+    crab = float(_take(table, "crab_deg", 0.0, number, where))
+    pitch = float(_take(table, "pitch_deg", 0.0, number, where))
+    roll = float(_take(table, "roll_deg", 0.0, number, where))
     _no_leftovers(table, f"{where} [trajectory]")
     if ov.altitude is not None:
         altitude = ov.altitude
@@ -336,7 +401,11 @@ def _trajectory(
     if not (math.isfinite(altitude) and altitude > 0):
         raise SonarRasterError(f"altitude must be > 0 metres, got {altitude}")
     z = ground_z + altitude
-    return Trajectory.straight((start[0], start[1], z), heading, spacing, pings), altitude
+    line = Trajectory.straight((start[0], start[1], z), heading, spacing, pings)
+    # Crab turns the vehicle (and its fans) off the course; pitch tilts the fans forward.
+    attitude = np.radians([crab, roll, pitch])
+    traj = Trajectory(line.positions, line.headings + attitude[0], attitude[1], attitude[2])
+    return traj, altitude
 
 
 def _from_description(path: Path, ov: Overrides) -> SceneSetup:
@@ -347,14 +416,16 @@ def _from_description(path: Path, ov: Overrides) -> SceneSetup:
         raise SonarRasterError(f"{where}: not valid TOML ({exc})") from None
     base = path.parent
     sonar = _sonar(_table(data, "sonar", where), base, ov, where)
-    sea = _seabed(_table(data, "seabed", where), base, where)
+    notes: dict = {}
+    sea = _seabed(_table(data, "seabed", where), base, where, sonar, notes)
     objects = data.get("objects", [])
     if not isinstance(objects, list) or not all(isinstance(o, dict) for o in objects):
         raise SonarRasterError(f"{where}: objects must be [[objects]] tables")
     parts = [sea[1]] if sea else []
     for k, spec in enumerate(objects):
         parts.extend(_object(spec, base, sea[0] if sea else None, k))
-    known = {"name", "description", "sonar", "seabed", "objects", "trajectory", "pulse", "coherent"}
+    known = {"name", "description", "sonar", "seabed", "objects", "trajectory", "pulse"}
+    known |= {"coherent", "effects"}
     unknown = set(data) - known
     if unknown:
         raise SonarRasterError(f"{where}: unknown top-level key(s) {', '.join(sorted(unknown))}")
@@ -363,7 +434,8 @@ def _from_description(path: Path, ov: Overrides) -> SceneSetup:
     traj, altitude = _trajectory(_table(data, "trajectory", where), ground, base, ov, where)
     pulse = _pulse(_table(data, "pulse", where), sonar, where)
     coherent = _coherent(_table(data, "coherent", where), where)
-    return SceneSetup(scene, sonar, traj, str(path), altitude, pulse, coherent)
+    effects = _effects(_table(data, "effects", where), base, where)
+    return SceneSetup(scene, sonar, traj, str(path), altitude, pulse, coherent, effects, notes)
 
 
 def _from_model(path: Path, ov: Overrides) -> SceneSetup:

@@ -229,6 +229,56 @@ class Heightfield:
         return Heightfield(self.height_at(xs[None, :], ys[:, None]), xmin, ymin, dx, dy)
 
 
+def level_of_detail(field: Heightfield, cell: float) -> tuple[Heightfield, dict]:
+    """A coarser grid for a seabed finer than the image can resolve, and the error it costs.
+
+    Each axis whose spacing is below ``cell`` is resampled (bilinearly, on the same extent) to
+    the largest spacing not above ``cell`` that divides the extent; an axis already coarser is
+    kept. A side-scan image resolves at best one range bin in ground range (finer still only
+    along track, at the ping spacing), so heights finer than half a bin mostly add triangles:
+    the error of the coarse surface at the fine nodes is returned so it can be reported.
+
+    Parameters
+    ----------
+    field : Heightfield
+    cell : float
+        Finest spacing worth drawing, metres (> 0).
+
+    Returns
+    -------
+    coarse : Heightfield
+        ``field`` itself when no axis is finer than ``cell``.
+    report : dict
+        Empty when nothing changed; else ``from_m`` and ``to_m`` (dx, dy), ``triangles_from``,
+        ``triangles_to``, and ``rms_m`` / ``max_m``: the RMS and largest height difference
+        between the coarse surface and the fine grid at the fine nodes, metres.
+    """
+    cell = _positive("cell", cell)
+    if field.dx >= cell and field.dy >= cell:
+        return field, {}
+    xmin, xmax, ymin, ymax = field.extent
+    nx, dx = _cells(xmax - xmin, cell) if field.dx < cell else (field.shape[1] - 1, field.dx)
+    ny, dy = _cells(ymax - ymin, cell) if field.dy < cell else (field.shape[0] - 1, field.dy)
+    xs, ys = xmin + dx * np.arange(nx + 1), ymin + dy * np.arange(ny + 1)
+    coarse = Heightfield(field.height_at(xs[None, :], ys[:, None]), xmin, ymin, dx, dy)
+    sq, worst = 0.0, 0.0
+    step = max(1, (1 << 20) // field.shape[1])  # fine rows per block
+    for j in range(0, field.shape[0], step):
+        rows = field.y[j : j + step]
+        diff = coarse.height_at(field.x[None, :], rows[:, None]) - field.z[j : j + step]
+        sq += float(np.sum(diff * diff))
+        worst = max(worst, float(np.abs(diff).max()))
+    report = {
+        "from_m": [field.dx, field.dy],
+        "to_m": [dx, dy],
+        "triangles_from": 2 * (field.shape[0] - 1) * (field.shape[1] - 1),
+        "triangles_to": 2 * ny * nx,
+        "rms_m": math.sqrt(sq / field.z.size),
+        "max_m": worst,
+    }
+    return coarse, report
+
+
 def _cell_and_fraction(f: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     """Cell index in ``[0, n - 2]`` and fraction in ``[0, 1]`` of fractional node positions."""
     f = np.clip(f, 0.0, n - 1.0)

@@ -233,12 +233,76 @@ def plot(results: list[dict], path: Path) -> None:
     print(f"wrote {path}")
 
 
+def lod_table(quick: bool) -> list[dict]:
+    """Level of detail: a rough seabed at finer and finer grids, drawn as is and coarsened.
+
+    The error is the image's relative L1 against the full-detail render (pixel by pixel, and of
+    the along-track mean profile), beside the height error the coarse grid reports.
+    """
+    from sonar_raster.raster import RasterRenderer
+    from sonar_raster.scene import build_scene
+    from sonar_raster.seabed import level_of_detail, rough
+    from sonar_raster.sonar import Sonar
+    from sonar_raster.trajectory import Trajectory
+
+    sonar = Sonar(max_range=30.0, range_bin=0.05, sides=("starboard",))
+    traj = Trajectory.straight((0.0, -10.0, 8.0), 0.0, 0.1, 200)
+    rows = []
+    with RasterRenderer() as r:
+        for res in [0.05, 0.025, 0.0125] + ([] if quick else [0.00625]):
+            fine = rough(
+                size=(34.0, 24.0),
+                center=(15.0, 0.0),
+                resolution=res,
+                rms_height=0.03,
+                correlation_length=0.5,
+                seed=3,
+            )
+            coarse, report = level_of_detail(fine, 0.5 * sonar.range_bin)
+            out = {}
+            for name, field in (("full", fine), ("lod", coarse)):
+                scene = build_scene([field.mesh(0.5)])
+                r.render(scene, sonar, traj)  # upload and warm up
+                t0 = time.perf_counter()
+                image = r.render(scene, sonar, traj).sides["starboard"].astype(np.float64)
+                out[name] = (image, time.perf_counter() - t0, scene.n_triangles)
+            full, lod = out["full"][0], out["lod"][0]
+            rows.append(
+                {
+                    "grid_m": res,
+                    "triangles_full": out["full"][2],
+                    "triangles_lod": out["lod"][2],
+                    "seconds_full": out["full"][1],
+                    "seconds_lod": out["lod"][1],
+                    "l1_pixels": float(np.abs(lod - full).sum() / full.sum()),
+                    "l1_profile": float(
+                        np.abs(lod.mean(0) - full.mean(0)).sum() / full.mean(0).sum()
+                    ),
+                    "height_rms_m": report.get("rms_m", 0.0),
+                    "height_max_m": report.get("max_m", 0.0),
+                }
+            )
+    print("\nlevel of detail (rough seabed, 5 cm bins, LOD cell = half a bin):")
+    print(
+        f"{'grid m':>8s} {'tris full':>10s} {'tris lod':>9s} {'s full':>7s} {'s lod':>7s} "
+        f"{'speed-up':>8s} {'L1 px':>7s} {'L1 prof':>7s} {'dz rms':>7s} {'dz max':>7s}"
+    )
+    for x in rows:
+        print(
+            f"{x['grid_m']:8.4f} {x['triangles_full']:10d} {x['triangles_lod']:9d} "
+            f"{x['seconds_full']:7.3f} {x['seconds_lod']:7.3f} "
+            f"{x['seconds_full'] / x['seconds_lod']:7.2f}x {x['l1_pixels']:7.4f} "
+            f"{x['l1_profile']:7.4f} {x['height_rms_m']:7.4f} {x['height_max_m']:7.4f}"
+        )
+    return rows
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smaller sizes (about a minute)")
     parser.add_argument("--out", type=Path, default=Path("bench_out"))
     parser.add_argument("--case", help=argparse.SUPPRESS)
-    parser.add_argument("--only", choices=("triangles", "pings", "bins"), help="one sweep")
+    parser.add_argument("--only", choices=("triangles", "pings", "bins", "lod"), help="one sweep")
     args = parser.parse_args()
     if args.case:
         print(json.dumps(run_case(json.loads(args.case))))
@@ -254,6 +318,14 @@ def main() -> None:
             r = results[-1]
             status = r.get("error") or f"{r['seconds']:.2f} s, {r['peak_mb']:.0f} MB"
             print(f"  {case['path']:10s} {case['size']:>10d}: {status}", flush=True)
+    if args.only in (None, "lod"):
+        lod_rows = lod_table(args.quick)
+        with open(args.out / "bench_lod.csv", "w", newline="") as fh:
+            writer = csv.DictWriter(fh, fieldnames=list(lod_rows[0]))
+            writer.writeheader()
+            writer.writerows(lod_rows)
+    if not results:
+        return
     print()
     report(results)
     fields = sorted({k for r in results for k in r})
