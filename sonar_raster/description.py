@@ -122,7 +122,7 @@ def _vector(value: Any, n: tuple[int, ...], key: str, where: str) -> np.ndarray:
 
 
 # -- sonar -------------------------------------------------------------------------------------
-def _beam(spec: Any, frequency: float, base: Path, where: str) -> BeamPattern:
+def _beam(spec: Any, frequency: float, sound_speed: float, base: Path, where: str) -> BeamPattern:
     if spec is None:
         return BeamPattern.uniform()
     if not isinstance(spec, dict):
@@ -135,7 +135,8 @@ def _beam(spec: Any, frequency: float, base: Path, where: str) -> BeamPattern:
     elif kind == "gaussian":
         beam = BeamPattern.gaussian(float(_take(spec, "beamwidth_deg", 40.0, number, where)))
     elif kind == "sinc":
-        beam = BeamPattern.sinc(float(_take(spec, "aperture_m", 0.02, number, where)), frequency)
+        aperture = float(_take(spec, "aperture_m", 0.02, number, where))
+        beam = BeamPattern.sinc(aperture, frequency, sound_speed)
     elif kind == "table":
         beam = BeamPattern.from_csv(str(base / _take(spec, "path", "", str, where)))
     else:
@@ -150,14 +151,17 @@ def _sonar(table: dict, base: Path, ov: Overrides, where: str) -> Sonar:
     number = (int, float)
     frequency = float(_take(table, "frequency_hz", 400e3, number, where))
     sides = _take(table, "sides", list(SIDES), list, where)
+    sound_speed = float(_take(table, "sound_speed", 1500.0, number, where))
+    if not (math.isfinite(sound_speed) and sound_speed > 0):
+        raise SonarRasterError(f"{where}: sound_speed must be > 0 m/s, got {sound_speed}")
     sonar = Sonar(
         frequency_hz=frequency,
         max_range=float(_take(table, "max_range", 50.0, number, where)),
         range_bin=float(_take(table, "range_bin", 0.05, number, where)),
         tilt=math.radians(float(_take(table, "tilt_deg", 20.0, number, where))),
-        beam=_beam(table.pop("beam", None), frequency, base, where),
+        beam=_beam(table.pop("beam", None), frequency, sound_speed, base, where),
         sides=tuple(sides),
-        sound_speed=float(_take(table, "sound_speed", 1500.0, number, where)),
+        sound_speed=sound_speed,
     )
     _no_leftovers(table, f"{where} [sonar]")
     changes: dict[str, Any] = {}

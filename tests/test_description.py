@@ -181,3 +181,20 @@ def test_pulse_and_coherent_tables(tmp_path):
     for bad in ('[pulse]\nkind = "fm"\n', "[coherent]\nspacing = 1\n", '[pulse]\nwindow = "x"\n'):
         with pytest.raises(SonarRasterError):
             load_scene_file(write(tmp_path, base + bad))
+
+
+def test_sinc_beam_uses_the_scene_sound_speed(tmp_path):
+    """λ = c / f: a faster sound speed widens the aperture's beam (first null at sin a = λ/L)."""
+    widths = {}
+    for c in (1450.0, 1550.0):
+        path = tmp_path / f"c{int(c)}.toml"
+        path.write_text(
+            f"[sonar]\nfrequency_hz = 300000.0\nsound_speed = {c}\n"
+            'beam = { kind = "sinc", aperture_m = 0.05 }\n[seabed]\nkind = "flat"\n'
+            "[trajectory]\npings = 2\n"
+        )
+        beam = load_scene_file(path).sonar.beam
+        a = np.radians(np.linspace(0.0, 8.0, 8001))  # first null only: sin a < 1.35 λ/L
+        widths[c] = a[np.argmin(beam(a))]
+        assert math.sin(widths[c]) == pytest.approx(c / 300e3 / 0.05, rel=2e-3)
+    assert widths[1550.0] > widths[1450.0]
