@@ -112,3 +112,19 @@ def test_stationary_sonar_repeats_the_labels(gl):
     lab = gl.render(scene, sonar, traj, labels=True).labels["starboard"]
     assert np.any(lab[0] == BOX)
     assert all(np.array_equal(lab[0], lab[k]) for k in range(1, 5))
+
+
+def test_no_label_work_when_labels_are_off():
+    """Labels off: the label programs are never built, no label target or buffer exists."""
+    from sonar_raster.raster import RasterRenderer
+
+    scene = _box_scene()
+    sonar = Sonar(max_range=30.0, range_bin=0.1)
+    traj = Trajectory.straight((0.0, -2.0, 8.0), 0.0, 0.2, 10)
+    with RasterRenderer("egl") as r:
+        r.render(scene, sonar, traj)
+        assert all(key.endswith(":0") for key in r._programs)
+        assert "labels" not in r._targets
+        assert not any(key.startswith("labels") for key in r._geometry)
+        r.render(scene, sonar, traj, labels=True)
+        assert any(key.endswith(":1") for key in r._programs) and "labels" in r._targets
