@@ -19,7 +19,7 @@ import numpy as np
 
 from .errors import SonarRasterError
 from .scene import MeshPart, Scene, build_scene
-from .seabed import Heightfield, level_of_detail, make_seabed
+from .seabed import Heightfield, level_of_detail, make_seabed, reflectivity_map
 from .sonar import SIDES, BeamPattern, Sonar
 from .trajectory import Trajectory
 
@@ -272,7 +272,9 @@ def _seabed(
     if not table:
         return None
     kind = table.pop("kind", "flat")
-    reflectivity = _reflectivity(table, DEFAULT_SEABED_REFLECTIVITY, f"{where} [seabed]")
+    map_file = table.pop("reflectivity_map", None)
+    default = DEFAULT_SEABED_REFLECTIVITY if map_file is None else 1.0
+    reflectivity = _reflectivity(table, default, f"{where} [seabed]")
     lod = table.pop("lod", True)
     if isinstance(lod, bool):
         lod_bins = DEFAULT_LOD_BINS if lod else 0.0
@@ -290,6 +292,9 @@ def _seabed(
         if report:
             notes["seabed_lod"] = report
             log.info("seabed level of detail: %s", report)
+    if map_file is not None:
+        node_map = float(reflectivity) * reflectivity_map(base / str(map_file), field)
+        return field, field.mesh(reflectivity=node_map, name="seabed")
     return field, field.mesh(reflectivity=float(reflectivity), name="seabed")
 
 

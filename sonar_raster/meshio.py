@@ -117,8 +117,8 @@ def _load_trimesh(path: Path) -> list[MeshPart]:
     return parts
 
 
-def _reflectivity(scene: Any, node: str, mesh: Any, path: Path) -> float:
-    """Node extras, mesh extras, then glTF baseColorFactor RGB mean, else 0.5."""
+def _reflectivity(scene: Any, node: str, mesh: Any, path: Path) -> float | np.ndarray:
+    """Node extras, mesh extras, then texture x colour factor, colour factor, else 0.5."""
     transforms = scene.graph.transforms
     parent = transforms.parents.get(node)
     node_extras = transforms.edge_data.get((parent, node), {}).get("metadata") or {}
@@ -126,11 +126,44 @@ def _reflectivity(scene: Any, node: str, mesh: Any, path: Path) -> float:
         if "reflectivity" in extras:
             return _checked(extras["reflectivity"], node, path)
     colour = getattr(getattr(mesh.visual, "material", None), "baseColorFactor", None)
-    if colour is None:
-        return _DEFAULT_REFLECTIVITY
-    colour = np.asarray(colour)
-    scale = 255.0 if np.issubdtype(colour.dtype, np.integer) else 1.0
-    return float(colour[:3].mean()) / scale
+    factor = 1.0
+    if colour is not None:
+        colour = np.asarray(colour)
+        scale = 255.0 if np.issubdtype(colour.dtype, np.integer) else 1.0
+        factor = float(colour[:3].mean()) / scale
+    texture = _texture_reflectivity(mesh)
+    if texture is not None:
+        return factor * texture
+    return factor if colour is not None else _DEFAULT_REFLECTIVITY
+
+
+#: Barycentric points at which a face samples its texture (centroid and towards each corner).
+_TEXTURE_SAMPLES = np.array(
+    [[1 / 3, 1 / 3, 1 / 3], [2 / 3, 1 / 6, 1 / 6], [1 / 6, 2 / 3, 1 / 6], [1 / 6, 1 / 6, 2 / 3]]
+)
+
+
+def _texture_reflectivity(mesh: Any) -> np.ndarray | None:
+    """Per-face reflectivity from a colour texture: mean grey (RGB mean / 255) at 4 points.
+
+    The renderer takes one reflectivity per face, so a texture varies R across a surface at
+    the mesh's resolution (subdivide coarse meshes to see finer texture detail). None when the
+    mesh has no UVs or no image.
+    """
+    from trimesh.visual.color import uv_to_color
+
+    visual = mesh.visual
+    uv = getattr(visual, "uv", None)
+    material = getattr(visual, "material", None)
+    image = getattr(material, "baseColorTexture", None) or getattr(material, "image", None)
+    if uv is None or image is None or len(uv) != len(mesh.vertices):
+        return None
+    corners = np.asarray(uv, dtype=np.float64)[np.asarray(mesh.faces)]
+    grey = [
+        uv_to_color(np.einsum("k,mkj->mj", w, corners), image)[:, :3].mean(axis=1) / 255.0
+        for w in _TEXTURE_SAMPLES
+    ]
+    return np.mean(grey, axis=0)
 
 
 def _checked(value: Any, node: str, path: Path) -> float:

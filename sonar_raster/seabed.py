@@ -229,6 +229,49 @@ class Heightfield:
         return Heightfield(self.height_at(xs[None, :], ys[:, None]), xmin, ymin, dx, dy)
 
 
+def reflectivity_map(path: str | Path, field: Heightfield) -> np.ndarray:
+    """Read a reflectivity map and sample it at a seabed's grid nodes.
+
+    The map is stretched over the seabed's extent. ``.npy``: a 2-D array of reflectivities,
+    row 0 at the smallest y (like elevation grids). Images (PNG, TIFF, EXR, ... read by
+    OpenImageIO): the mean of the colour channels, scaled to [0, 1] for integer formats, row 0
+    at the largest y (the top of the picture is north). Sampling is bilinear.
+
+    Parameters
+    ----------
+    path : str or Path
+        The map file.
+    field : Heightfield
+        The seabed whose nodes it is sampled at.
+
+    Returns
+    -------
+    ndarray, shape (ny, nx), float64
+        Reflectivity at each node, finite and >= 0 (ready for :meth:`Heightfield.mesh`).
+    """
+    from scipy.ndimage import map_coordinates
+
+    path = Path(path)
+    if not path.is_file():
+        raise SonarRasterError(f"reflectivity map {path} does not exist; check the path")
+    if path.suffix.lower() == ".npy":
+        values = _read_npy(path).astype(np.float64)
+    else:
+        from .io import read_pixels
+
+        pixels, spec = read_pixels(path)
+        values = pixels[:, :, : min(3, pixels.shape[2])].mean(axis=2)[::-1].astype(np.float64)
+    if values.ndim != 2 or min(values.shape) < 1:
+        raise SonarRasterError(f"reflectivity map {path.name} must be a 2-D grid")
+    if not (np.all(np.isfinite(values)) and values.min() >= 0):
+        raise SonarRasterError(f"reflectivity map {path.name} must hold finite values >= 0")
+    ny, nx = field.shape
+    rows = np.linspace(0.0, values.shape[0] - 1, ny)
+    cols = np.linspace(0.0, values.shape[1] - 1, nx)
+    grid = np.meshgrid(rows, cols, indexing="ij")
+    return map_coordinates(values, grid, order=1, mode="nearest")
+
+
 def level_of_detail(field: Heightfield, cell: float) -> tuple[Heightfield, dict]:
     """A coarser grid for a seabed finer than the image can resolve, and the error it costs.
 

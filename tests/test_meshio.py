@@ -183,3 +183,33 @@ def test_importing_meshio_does_not_import_trimesh():
     code = "import sys, sonar_raster.meshio; print('trimesh' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+@pytest.mark.parametrize("suffix", [".glb", ".obj"])
+def test_colour_texture_gives_per_face_reflectivity(tmp_path, suffix):
+    """A 2 x 1 texture, black | white: each triangle's UVs sit in one texel."""
+    import trimesh
+    from PIL import Image
+
+    image = Image.fromarray(np.array([[[0, 0, 0], [255, 255, 255]]], dtype=np.uint8))
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.0]])
+    f = np.array([[0, 1, 3], [1, 2, 3]])
+    uv = np.array([[0.05, 0.5], [0.45, 0.5], [0.95, 0.5], [0.2, 0.5]])
+    # Face 0 (uv x 0.05..0.45): black; face 1 (x 0.45, 0.95, 0.2): two samples on each texel.
+    material = trimesh.visual.material.PBRMaterial(
+        baseColorTexture=image, baseColorFactor=[128, 128, 128, 255]
+    )
+    mesh = trimesh.Trimesh(
+        v, f, visual=trimesh.visual.TextureVisuals(uv=uv, material=material), process=False
+    )
+    path = tmp_path / f"textured{suffix}"
+    mesh.export(path)
+    (part,) = load_model(path)
+    r = np.broadcast_to(part.reflectivity, (2,))
+    factor = 128 / 255 if suffix == ".glb" else 1.0  # OBJ keeps no PBR colour factor
+    samples = np.array(
+        [[1 / 3] * 3, [2 / 3, 1 / 6, 1 / 6], [1 / 6, 2 / 3, 1 / 6], [1 / 6, 1 / 6, 2 / 3]]
+    )
+    expected = [factor * np.mean((samples @ uv[face, 0]) >= 0.5) for face in f]
+    np.testing.assert_allclose(r, expected, atol=0.02)
+    assert r[0] == pytest.approx(0.0, abs=0.02) and r[1] > 0.3 * factor

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from sonar_raster import seabed
+from sonar_raster.description import load_scene_file
 from sonar_raster.errors import SonarRasterError
 from sonar_raster.scene import build_scene
 from sonar_raster.seabed import Heightfield, heightfield_mesh
@@ -402,3 +403,33 @@ def test_ripples_bad_fractions():
     _raises(seabed.make_seabed, "ripples", size=5.0, asymmetry=1.0, match="asymmetry")
     _raises(seabed.make_seabed, "bumpy", size=5.0, hollow_fraction=-0.1, match="hollow")
     _raises(seabed.make_seabed, "bumpy", size=5.0, bump_width=0.05, match="bump_width")
+
+
+def test_seabed_reflectivity_map_from_npy_and_png(tmp_path):
+    """Left half dark, right half bright, in both formats (PNG rows run north to south)."""
+    import OpenImageIO as oiio
+
+    values = np.where(np.arange(8)[None, :] < 4, 0.1, 0.9) * np.ones((6, 1))
+    np.save(tmp_path / "map.npy", values)
+    png = (values[::-1] * 255).astype(np.uint8)[:, :, None]
+    out = oiio.ImageOutput.create(str(tmp_path / "map.png"))
+    out.open(str(tmp_path / "map.png"), oiio.ImageSpec(8, 6, 1, oiio.UINT8))
+    out.write_image(png)
+    out.close()
+    for name, scale in (("map.npy", 1.0), ("map.png", 0.5)):
+        path = tmp_path / "patches.toml"
+        path.write_text(
+            "[sonar]\nmax_range = 20.0\nrange_bin = 0.05\n"
+            '[seabed]\nkind = "flat"\nsize = [14.0, 10.0]\nresolution = 0.5\n'
+            f'reflectivity_map = "{name}"\nreflectivity = {scale}\n[trajectory]\npings = 3\n'
+        )
+        scene = load_scene_file(path).scene
+        centroid_x = scene.vertices[scene.faces].mean(axis=1)[:, 0]
+        west, east = scene.reflectivity[centroid_x < -1.5], scene.reflectivity[centroid_x > 1.5]
+        assert np.allclose(west, 0.1 * scale, atol=0.01) and np.allclose(
+            east, 0.9 * scale, atol=0.01
+        )
+    np.save(tmp_path / "bad.npy", -values)
+    path.write_text(path.read_text().replace(name, "bad.npy"))
+    with pytest.raises(SonarRasterError, match="finite values >= 0"):
+        load_scene_file(path)
