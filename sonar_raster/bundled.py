@@ -24,6 +24,8 @@ def list_bundled() -> list[tuple[str, str]]:
     """(name, description) of every bundled scene, sorted by name."""
     out = []
     for path in sorted(_folder().glob("*.toml")):
+        if path.stem.startswith("dataset_"):  # dataset configs (sonar_raster.dataset)
+            continue
         data = tomllib.loads(path.read_text(encoding="utf-8"))
         out.append((path.stem, str(data.get("description", data.get("name", "")))))
     return out
