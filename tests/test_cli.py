@@ -74,7 +74,7 @@ def test_help_is_instant_and_lists_commands():
             "-c",
             "import sys, sonar_raster.cli as c\n"
             "try:\n    c.main(['--help'])\nexcept SystemExit:\n    pass\n"
-            "print(sorted(m for m in ('moderngl', 'trimesh', 'OpenImageIO')"
+            "print(sorted(m for m in ('moderngl', 'trimesh', 'OpenImageIO', 'scipy', 'skimage')"
             " if m in sys.modules))",
         ],
         capture_output=True,
