@@ -3,7 +3,8 @@
 A survey line of 10⁵ pings × 4096 bins is 3.3 GB of float32 per side pair: more than a
 laptop wants to hold, and more than a GL buffer may be. :func:`render_survey` renders the
 track block by block (:meth:`RasterRenderer.render_chunks`) and appends each block to an EXR
-as scanlines, so peak memory follows the block size, not the track. A PNG is made afterwards
+as scanlines (and to an XTF, ping records, when asked), so peak memory follows the block size,
+not the track. A PNG is made afterwards
 from the finished EXR, block by block again, with its display mapping taken from an even
 subsample of the pings. Every output is written under a temporary name and renamed into place
 only when all are complete.
@@ -100,7 +101,8 @@ def render_survey(
     scene, sonar, trajectory
         What to render (see :func:`sonar_raster.render_raster`).
     outputs : list of path
-        Files ending in .exr or .png (directories must exist).
+        Files ending in .exr, .png or .xtf (directories must exist); .exr and .png get a JSON
+        sidecar.
     chunk_pings : int
         Pings per block; memory grows with ``chunk_pings × bins``, not with the track.
     backend, settings
@@ -122,17 +124,19 @@ def render_survey(
     """
     paths = [Path(p) for p in outputs]
     for path in paths:
-        if path.suffix.lower() not in sio.SUPPORTED:
-            raise SonarRasterError(f"cannot write {path}: use one of {', '.join(sio.SUPPORTED)}")
+        if path.suffix.lower() not in (*sio.SUPPORTED, ".xtf"):
+            raise SonarRasterError(f"cannot write {path}: use .exr, .png or .xtf")
         sio._check_directory(path)
+    xtf_final = next((p for p in paths if p.suffix.lower() == ".xtf"), None)
     if bit_depth not in (8, 16):
         raise SonarRasterError(f"PNG bit depth must be 8 or 16, got {bit_depth!r}")
     exr_final = next((p for p in paths if p.suffix.lower() == ".exr"), None)
     exr_tmp = _temp_name(exr_final or paths[0].with_suffix(".exr"))
-    temps: list[Path] = [exr_tmp]
+    xtf_tmp = _temp_name(xtf_final) if xtf_final else None
+    temps: list[Path] = [exr_tmp] + ([xtf_tmp] if xtf_tmp else [])
     try:
         stats, summary, meta = _stream_blocks(
-            scene, sonar, trajectory, exr_tmp, chunk_pings, backend, settings, progress
+            scene, sonar, trajectory, (exr_tmp, xtf_tmp), chunk_pings, backend, settings, progress
         )
         meta.update(metadata or {})
         if dynamic_range_db is None:
@@ -147,6 +151,9 @@ def render_survey(
         header = SonarImage({s: np.zeros((1, 1), np.float32) for s in sonar.sides}, sonar, meta)
         jobs: list[tuple[Path, Path]] = []
         for path in paths:
+            if path == xtf_final and xtf_tmp is not None:
+                jobs.append((xtf_tmp, path))
+                continue
             if path.suffix.lower() == ".png":
                 tmp = _temp_name(path)
                 temps.append(tmp)
@@ -174,16 +181,18 @@ def _stream_blocks(
     scene: Scene,
     sonar: Sonar,
     trajectory: Trajectory,
-    exr_tmp: Path,
+    temps: tuple[Path, Path | None],
     chunk_pings: int,
     backend: str | None,
     settings: RasterSettings | None,
     progress: bool,
 ) -> tuple[np.ndarray, dict, dict]:
-    """Render into ``exr_tmp``; return the display subsample, summed counters and metadata."""
+    """Render into the temporary EXR (and XTF); return display rows, counters and metadata."""
     n_pings = trajectory.n_pings
     stride = max(1, math.ceil(n_pings / STAT_ROWS))
+    exr_tmp, xtf_tmp = temps
     writer = ExrStreamWriter(exr_tmp, n_pings)
+    xtf = _XtfStream(xtf_tmp, trajectory, scene.ground_z) if xtf_tmp else None
     rows: list[np.ndarray] = []
     summary = {"blocks": 0, "draws": 0, "draws_skipped_empty": 0, "triangles_drawn": 0}
     meta: dict = {}
@@ -198,6 +207,8 @@ def _stream_blocks(
             for block in blocks:
                 sio._checked_sides(block)  # finite, one shape: raises before anything is kept
                 writer.write(block)
+                if xtf is not None:
+                    xtf.write(block)
                 first = int(block.metadata["first_ping"])
                 keep = np.arange((-first) % stride, block.shape[0], stride)
                 rows.append(block.display()[keep])
@@ -208,9 +219,33 @@ def _stream_blocks(
         except BaseException:
             _abandon(writer)
             raise
+        finally:
+            if xtf is not None:
+                xtf.close()
     writer.close()
     meta["survey"] = {"chunk_pings": chunk_pings, **summary}
     return np.concatenate(rows), summary, meta
+
+
+class _XtfStream:
+    """XTF ping records appended block by block (altitude = height above the scene's ground)."""
+
+    def __init__(self, tmp: Path, trajectory: Trajectory, ground_z: float):
+        from .xtf import XtfWriter
+
+        self.fh = open(tmp, "xb")  # closed by close(), after the last block
+        self.writer = XtfWriter(self.fh)
+        self.trajectory, self.ground_z = trajectory, ground_z
+
+    def write(self, block: SonarImage) -> None:
+        first = int(block.metadata["first_ping"])
+        rows = slice(first, first + block.shape[0])
+        t = self.trajectory
+        poses = Trajectory(t.positions[rows], t.headings[rows], t.roll[rows], t.pitch[rows])
+        self.writer.write(block, poses, poses.positions[:, 2] - self.ground_z)
+
+    def close(self) -> None:
+        self.fh.close()
 
 
 def _abandon(writer: ExrStreamWriter) -> None:

@@ -439,7 +439,7 @@ class XtfNavigation:
         idx = np.flatnonzero(self.valid)
         depth = np.interp(np.arange(len(self.valid)), idx, self.depth[self.valid])
         pos = np.stack([east - origin[0], north - origin[1], -depth], axis=1)
-        return Trajectory(pos, self.filled_heading(), self.roll)
+        return Trajectory(pos, self.filled_heading(), self.roll, self.pitch)
 
     def along_track_spacing(self) -> float:
         """Mean distance between pings, metres (NaN with fewer than two fixes).
@@ -621,16 +621,50 @@ def write_xtf(
 
     def writer(tmp: Path) -> None:
         with open(tmp, "xb") as fh:
-            fh.write(_file_header(image, sample_format).to_bytes())
-            for i in range(pings):
-                packet = _ping_packet(
-                    image, trajectory, i, float(alt[i]), origin,
-                    start_time + i * interval, interval, sample_format,
-                )  # fmt: skip
-                fh.write(packet.to_bytes())
+            XtfWriter(fh, sample_format, origin, start_time, interval).write(image, trajectory, alt)
 
     _commit([(final, writer)])
     return final
+
+
+class XtfWriter:
+    """Append blocks of pings to an open XTF file: the file header, then one packet per ping.
+
+    Used by :func:`write_xtf` (one block) and by long surveys streamed block by block
+    (:func:`sonar_raster.survey.render_survey`). Ping numbers and times run on across blocks.
+    """
+
+    def __init__(
+        self,
+        fh: Any,
+        sample_format: str = "float32",
+        origin: tuple[float, float] = (0.0, 0.0),
+        start_time: float = 946684800.0,
+        interval: float | None = None,
+    ) -> None:
+        if sample_format not in _SAMPLE_FORMATS:
+            raise SonarRasterError(
+                f"sample_format must be float32 or uint16, got {sample_format!r}"
+            )
+        self.fh, self.sample_format, self.origin = fh, sample_format, origin
+        self.start_time, self.interval = start_time, interval
+        self.pings = 0
+
+    def write(self, image: SonarImage, trajectory: Trajectory, altitude: np.ndarray) -> None:
+        """Append ``image``'s pings with their poses (``trajectory``) and altitudes (metres)."""
+        if self.pings == 0:
+            self.fh.write(_file_header(image, self.sample_format).to_bytes())
+        sonar = image.sonar
+        interval = self.interval or 2.0 * image.shape[1] * sonar.range_bin / sonar.sound_speed
+        for i in range(image.shape[0]):
+            n = self.pings + i
+            packet = _ping_packet(
+                image, trajectory, i, float(altitude[i]), self.origin,
+                self.start_time + n * interval, interval, self.sample_format,
+            )  # fmt: skip
+            packet.PingNumber = n
+            self.fh.write(packet.to_bytes())
+        self.pings += image.shape[0]
 
 
 def _file_header(image: SonarImage, sample_format: str) -> Any:
@@ -680,6 +714,7 @@ def _ping_packet(
     ping.SensorYcoordinate = ping.ShipYcoordinate = y + origin[1]
     ping.SensorHeading = ping.ShipGyro = math.degrees(float(track.headings[i])) % 360.0
     ping.SensorRoll = math.degrees(float(track.roll[i]))
+    ping.SensorPitch = math.degrees(float(track.pitch[i]))
     ping.SensorPrimaryAltitude = altitude
     ping.SensorDepth = -z
     chans, data = [], []

@@ -127,7 +127,9 @@ def simulated():
     n = 40
     t = np.linspace(0.0, 1.0, n)
     pos = np.stack([3.0 * t, -4.0 + 8.0 * t + 0.5 * t**2, 8.0 + 0.2 * t], axis=1)
-    track = Trajectory(pos, np.radians(20.0 + 10.0 * t), np.radians(-2.0 + 4.0 * t))
+    track = Trajectory(
+        pos, np.radians(20.0 + 10.0 * t), np.radians(-2.0 + 4.0 * t), np.radians(3.0 - 2.0 * t)
+    )
     image = render_raster(build_scene([plane(200.0)]), sonar, track)
     return image, track
 
@@ -151,6 +153,7 @@ def test_simulated_round_trip_is_exact_in_float32(tmp_path, simulated, origin):
     np.testing.assert_allclose(again.positions[:, 2], track.positions[:, 2], atol=1e-5)
     np.testing.assert_allclose(again.headings, track.headings, atol=1e-6)  # float32 degrees
     np.testing.assert_allclose(again.roll, track.roll, atol=1e-7)
+    np.testing.assert_allclose(again.pitch, track.pitch, atol=1e-7)
     np.testing.assert_allclose(nav.altitude, altitude, rtol=1e-6)
 
 
