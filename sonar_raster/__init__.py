@@ -2,9 +2,10 @@
 
 The data flow, top to bottom: a :class:`Scene` (triangles, reflectivity) and a :class:`Sonar`
 with a :class:`Trajectory` go into a renderer (:func:`render_raster` on OpenGL, or
-:func:`render_reference` in numpy), which returns a :class:`SonarImage`; :func:`write_image`
-writes it as EXR/PNG with a JSON sidecar. Heavy modules load on first use, so importing the
-package stays fast.
+:func:`render_reference` in numpy), which returns a :class:`SonarImage`; :func:`apply_effects`
+adds the sensor's effects (:class:`Effects`: beams, losses, gain, speckle, quantisation), and
+:func:`write_image` writes it as EXR/PNG with a JSON sidecar. Heavy modules load on first use,
+so importing the package stays fast.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from .trajectory import Trajectory
 
 __all__ = [
     "BeamPattern",
+    "Effects",
     "HorizontalBeam",
     "MeshPart",
     "Pulse",
@@ -30,13 +32,18 @@ __all__ = [
     "SonarImage",
     "SonarRasterError",
     "Trajectory",
+    "apply_effects",
     "build_scene",
+    "generate_dataset",
     "load_scene_file",
     "render_coherent",
     "render_raster",
+    "read_xtf",
     "render_reference",
     "to_raster_units",
+    "track_bottom",
     "write_image",
+    "write_xtf",
 ]
 
 _LAZY = {
@@ -49,7 +56,13 @@ _LAZY = {
     "render_raster": "raster",
     "render_reference": "reference",
     "write_image": "io",
+    "Effects": "effects",
+    "apply_effects": "effects",
     "load_scene_file": "description",
+    "generate_dataset": "dataset",
+    "read_xtf": "xtf",
+    "write_xtf": "xtf",
+    "track_bottom": "bottom",
 }
 
 

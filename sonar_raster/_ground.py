@@ -25,10 +25,14 @@ ALTITUDE_MEDIAN_PINGS = 9
 def first_return(slant: np.ndarray, range_bin: float) -> np.ndarray:
     """Altitude of the sonar over the seabed per ping from the first bottom return.
 
-    Each ping is smoothed (Gaussian, 0.75 bins); the return is where it first rises above
-    ``floor + max(0.05 (p99 − floor), 8 σ)``, ``floor`` and ``σ`` the median and robust
+    Each ping is smoothed (Gaussian, 0.75 bins) and the return detected where it first rises
+    above ``floor + max(0.05 (p99 − floor), 8 σ)``, ``floor`` and ``σ`` the median and robust
     deviation (1.4826 MAD) of the image's nearest 2 % of bins (the water column) and ``p99`` the
-    ping's 99th percentile, interpolated linearly between bin centres. The altitudes are then
+    ping's 99th percentile. The altitude is then where the unsmoothed ping crosses half the
+    height of its leading edge (see :func:`_half_rise`), interpolated linearly between bin
+    centres: the smoothed crossing of a low
+    threshold lies most of a bin before a sharp edge (3 cm early at 5 cm bins), the half-height
+    crossing of a step at the step. The altitudes are then
     median filtered over 9 pings, so a ping with a noisy water column or no return takes its
     neighbours' value.
 
@@ -61,14 +65,35 @@ def first_return(slant: np.ndarray, range_bin: float) -> np.ndarray:
     if not found.any():
         raise SonarRasterError("no bottom return found in any ping; give --altitude")
     k = np.argmax(above, axis=1)
-    prev = smooth[np.arange(len(k)), np.maximum(k - 1, 0)]
-    here = smooth[np.arange(len(k)), k]
-    step = here - prev
-    frac = np.where(step > 0, (threshold - prev) / np.where(step > 0, step, 1.0), 1.0)
-    alt = (k - 1 + np.clip(frac, 0.0, 1.0) + 0.5) * range_bin
+    alt = (_half_rise(np.asarray(slant, dtype=np.float64), k, floor, threshold) + 0.5) * range_bin
     alt = np.where(found, np.maximum(alt, 0.5 * range_bin), np.nan)
     alt = np.where(found, alt, np.nanmedian(alt))
     return ndimage.median_filter(alt, size=ALTITUDE_MEDIAN_PINGS, mode="nearest")
+
+
+def _half_rise(raw: np.ndarray, k: np.ndarray, floor: float, threshold: np.ndarray) -> np.ndarray:
+    """Sub-bin position (in bin-centre units) of each ping's leading edge.
+
+    The edge starts at the first raw bin from ``k − 2`` to ``k + 2`` (``k`` the smoothed
+    detection) above the threshold, else ``k``; its height is the larger of that bin and the
+    next; the position is where the raw ping first crosses half that height above the floor,
+    interpolated linearly between bin centres. A step of constant height found at a fraction
+    ``f`` of a bin is placed at ``f`` for ``f`` = 0 and within a tenth of a bin elsewhere.
+    """
+    pings, bins = raw.shape
+    rows = np.arange(pings)
+    cols = np.clip(k[:, None] + np.arange(-2, 3)[None, :], 0, bins - 1)
+    window = raw[rows[:, None], cols]
+    above = window > threshold[:, None]
+    above[:, 0] = False  # the crossing needs a bin before it
+    j = np.where(above.any(axis=1), np.argmax(above, axis=1), 2)
+    top = np.maximum(window[rows, j], window[rows, np.minimum(j + 1, 4)])
+    half = floor + 0.5 * (top - floor)
+    j = np.where(window[rows, j] >= half, j, np.minimum(j + 1, 4))
+    hi, lo = window[rows, j], window[rows, j - 1]
+    step = hi - lo
+    frac = np.where(step > 0, (half - lo) / np.where(step > 0, step, 1.0), 1.0)
+    return cols[rows, j - 1] + np.clip(frac, 0.0, 1.0)
 
 
 def ground_axis(altitude: np.ndarray, range_bin: float, bins: int, ground_bin: float) -> np.ndarray:
@@ -106,7 +131,39 @@ def slant_to_ground(
     valid : ndarray, shape (pings, cells), bool
         Cells whose slant range lies inside the image.
     """
-    r = np.sqrt(x[None, :] ** 2 + altitude[:, None] ** 2)
+    return sample_ground(
+        slant, range_bin, np.broadcast_to(altitude[:, None], (len(altitude), len(x))), x
+    )
+
+
+def sample_ground(
+    slant: np.ndarray, range_bin: float, depth: np.ndarray, x: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Resample a slant-range image onto ground cells that lie ``depth`` below the sonar.
+
+    Cell (i, j) takes the slant image at range ``r = sqrt(x_j² + depth_ij²)`` (linear
+    interpolation between bin centres) per metre of ground range with the flat-seabed Jacobian
+    ``x / r``; :func:`slant_to_ground` is the case of one depth per ping.
+
+    Parameters
+    ----------
+    slant : ndarray, shape (pings, bins)
+        Intensity per slant bin.
+    range_bin : float
+        Slant bin size, metres.
+    depth : ndarray, shape (pings, cells)
+        Depth of each ground cell below the transducer, metres (finite).
+    x : ndarray, shape (cells,)
+        Ground cell centres, metres.
+
+    Returns
+    -------
+    ground : ndarray, shape (pings, cells), float64
+        Intensity per metre of ground range (0 where invalid).
+    valid : ndarray, shape (pings, cells), bool
+        Cells whose slant range lies inside the image.
+    """
+    r = np.sqrt(x[None, :] ** 2 + depth**2)
     pos = r / range_bin - 0.5
     bins = slant.shape[1]
     valid = r < bins * range_bin

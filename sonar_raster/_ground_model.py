@@ -129,20 +129,33 @@ def _gather(field: np.ndarray, c: _Cells) -> tuple[np.ndarray, np.ndarray]:
     return pad[rows, np.clip(c.k0 + 1, 0, last)], pad[rows, np.clip(c.k0 + 2, 0, last)]
 
 
-def roughness(r: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-    """``Σ (ΔR)²`` over neighbouring cells along both axes, its gradient and JᵀJ diagonal."""
+def roughness(r: np.ndarray, edge: float = 0.0) -> tuple[float, np.ndarray, np.ndarray]:
+    """Roughness of R over neighbouring cells along both axes, its gradient and a diagonal.
+
+    With ``edge = 0``: ``Σ (ΔR)²`` and the JᵀJ diagonal. With ``edge = ε > 0`` the
+    edge-preserving Charbonnier form ``Σ 2ε (sqrt(ΔR² + ε²) − ε)``, equal to ``(ΔR)²`` for
+    ``|ΔR| ≪ ε`` but growing only as ``2ε |ΔR|`` across a jump (a patch of other material), and
+    the diagonal of its reweighted quadratic (weights ``ε / sqrt(ΔR² + ε²)``).
+    """
     dx, dy = np.diff(r, axis=1), np.diff(r, axis=0)
+    if edge > 0:
+        sx, sy = np.sqrt(dx * dx + edge * edge), np.sqrt(dy * dy + edge * edge)
+        value = 2.0 * edge * (float(np.sum(sx - edge)) + float(np.sum(sy - edge)))
+        wx, wy = edge / sx, edge / sy
+    else:
+        value = float(np.sum(dx * dx) + np.sum(dy * dy))
+        wx, wy = np.ones_like(dx), np.ones_like(dy)
     grad = np.zeros_like(r)
-    grad[:, 1:] += 2.0 * dx
-    grad[:, :-1] -= 2.0 * dx
-    grad[1:] += 2.0 * dy
-    grad[:-1] -= 2.0 * dy
+    grad[:, 1:] += 2.0 * wx * dx
+    grad[:, :-1] -= 2.0 * wx * dx
+    grad[1:] += 2.0 * wy * dy
+    grad[:-1] -= 2.0 * wy * dy
     count = np.zeros_like(r)
-    count[:, 1:] += 1.0
-    count[:, :-1] += 1.0
-    count[1:] += 1.0
-    count[:-1] += 1.0
-    return float(np.sum(dx * dx) + np.sum(dy * dy)), grad, 2.0 * count
+    count[:, 1:] += wx
+    count[:, :-1] += wx
+    count[1:] += wy
+    count[:-1] += wy
+    return value, grad, 2.0 * count
 
 
 def forward(r: np.ndarray, phi: np.ndarray, z: np.ndarray, geom: Geometry) -> np.ndarray:
@@ -172,14 +185,16 @@ def energy(
     z: np.ndarray,
     geom: Geometry,
     smooth: float = 0.0,
+    edge: float = 0.0,
 ) -> float:
-    """``E = Σ w (I − Î)² + smooth Σ (ΔR)²``, a float (``image``, ``weight``: (pings, bins)).
+    """``E = Σ w (I − Î)² + smooth · roughness(R, edge)``, a float.
 
-    The second term ties each cell's reflectivity to its neighbours' (along and across
-    track), so R cannot take up the relief's shading.
+    ``image`` and ``weight`` are (pings, bins). The second term ties each cell's reflectivity
+    to its neighbours' (along and across track), so R cannot take up the relief's shading
+    (see :func:`roughness`).
     """
     res = forward(r, phi, z, geom) - image
-    return float(np.sum(weight * res * res)) + smooth * roughness(r)[0]
+    return float(np.sum(weight * res * res)) + smooth * roughness(r, edge)[0]
 
 
 def evaluate(
@@ -190,6 +205,7 @@ def evaluate(
     z: np.ndarray,
     geom: Geometry,
     smooth: float = 0.0,
+    edge: float = 0.0,
 ) -> Evaluation:
     """Exact gradient of :func:`energy` wrt every ground cell of R, Φ and Z.
 
@@ -215,7 +231,7 @@ def evaluate(
     gz = b * amp * dq_dz + db * shift + slope_adjoint(b * amp * dq_dzx, 1, dx)
     dz = a * (amp * dq_dz) ** 2 + (w0 + w1) * (shift / rb) ** 2
     dz += slope_adjoint(a * (amp * dq_dzx) ** 2, 1, dx, power=2)
-    rough, grad_rough, diag_rough = roughness(r)
+    rough, grad_rough, diag_rough = roughness(r, edge)
     return Evaluation(
         energy=float(np.sum(weight * res * res)) + smooth * rough,
         grad_r=b * phi * c.q * dx + smooth * grad_rough,
@@ -281,14 +297,18 @@ def gauss_newton_z(
     z: np.ndarray,
     geom: Geometry,
     damping: float,
+    prior: float | np.ndarray = 0.0,
 ) -> np.ndarray:
-    """Levenberg-Marquardt step of Z: ``−(2 JᵀJ + μ I)⁻¹ ∂E/∂Z``, shape of ``z``.
+    """Levenberg-Marquardt step of Z: ``−(2 JᵀJ + prior I + μ I)⁻¹ ∂E/∂Z``, shape of ``z``.
 
     ``μ = damping × mean diagonal of 2 JᵀJ``; with ``μ > 0`` the step is a descent direction.
+    ``prior`` (a number or an array shaped like ``z``) is added to the diagonal: that of the
+    Hessian of any quadratic prior on Z included in ``grad_z``.
     """
     j = jacobian_z(weight, r, phi, z, geom)
     h = 2.0 * (j.T @ j).tocsc()
     diag = h.diagonal()
     mu = damping * float(diag.mean()) if diag.size and diag.mean() > 0 else 1.0
-    h = h + sparse.identity(h.shape[0], format="csc") * mu
+    extra = np.broadcast_to(np.asarray(prior, np.float64), z.shape).ravel() + mu
+    h = h + sparse.diags(extra, format="csc")
     return -spsolve(h, grad_z.ravel()).reshape(z.shape)

@@ -43,6 +43,14 @@ class Problem:
         Weight of the reflectivity roughness term of E.
     smooth_phi : float
         Weight of the beam-profile curvature term ``Σ (Δ²Φ)²`` of E.
+    edge : float
+        ε of the edge-preserving reflectivity roughness (0: quadratic); see
+        :func:`sonar_raster._ground_model.roughness`.
+    smooth_tilt : float
+        Weight of the tilt prior ``Σ_i s_i²`` of E, ``s_i = Σ_j c_j Z_ij`` the least-squares
+        across-track slope of ping i.
+    tilt : ndarray, shape (cells,), optional
+        The slope weights ``c_j = (x_j − x̄) / Σ (x − x̄)²``; needed when ``smooth_tilt > 0``.
     """
 
     image: np.ndarray
@@ -52,6 +60,9 @@ class Problem:
     tie: np.ndarray
     smooth: float = 0.0
     smooth_phi: float = 0.0
+    edge: float = 0.0
+    smooth_tilt: float = 0.0
+    tilt: np.ndarray | None = None
 
     def cells(self, r: np.ndarray, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Per-cell R and Φ from the parameters (flat R, Φ profile)."""
@@ -60,8 +71,11 @@ class Problem:
     def energy(self, r: np.ndarray, phi: np.ndarray, z: np.ndarray) -> float:
         """E of the parameters."""
         rc, pc = self.cells(r, phi)
-        data = energy(self.image, self.weight, rc, pc, z, self.geom, self.smooth)
-        return data + self.smooth_phi * float(np.sum(np.diff(phi, 2) ** 2))
+        data = energy(self.image, self.weight, rc, pc, z, self.geom, self.smooth, self.edge)
+        data += self.smooth_phi * float(np.sum(np.diff(phi, 2) ** 2))
+        if self.smooth_tilt > 0 and self.tilt is not None:
+            data += self.smooth_tilt * float(np.sum((z @ self.tilt) ** 2))
+        return data
 
 
 @dataclass(frozen=True)
@@ -83,13 +97,17 @@ def _search_direction(
     prob: Problem, r: np.ndarray, phi: np.ndarray, z: np.ndarray, steps: Steps
 ) -> tuple[float, list[np.ndarray], float]:
     rc, pc = prob.cells(r, phi)
-    ev = evaluate(prob.image, prob.weight, rc, pc, z, prob.geom, prob.smooth)
+    ev = evaluate(prob.image, prob.weight, rc, pc, z, prob.geom, prob.smooth, prob.edge)
     nb = len(phi)
     grads = [
         np.bincount(prob.tie, ev.grad_r.ravel(), minlength=r.size),
         np.bincount(prob.bins.ravel(), ev.grad_phi.ravel(), minlength=nb),
         ev.grad_z,
     ]
+    prior_z = np.zeros_like(z)
+    if prob.smooth_tilt > 0 and prob.tilt is not None:
+        grads[2] = grads[2] + 2.0 * prob.smooth_tilt * np.outer(z @ prob.tilt, prob.tilt)
+        prior_z += 2.0 * prob.smooth_tilt * prob.tilt[None, :] ** 2
     if prob.smooth_phi > 0 and len(phi) > 2:
         d2 = np.diff(phi, 2)
         adj = np.zeros_like(phi)
@@ -100,14 +118,16 @@ def _search_direction(
     diags = [
         np.bincount(prob.tie, ev.diag_r.ravel(), minlength=r.size),
         np.bincount(prob.bins.ravel(), ev.diag_phi.ravel(), minlength=nb) + 12.0 * prob.smooth_phi,
-        ev.diag_z,
+        ev.diag_z + prior_z,
     ]
     dirs = [
         _direction(g, d, s)
         for g, d, s in zip(grads, diags, (steps.r, steps.phi, steps.z), strict=True)
     ]
     if steps.z > 0 and z.size:
-        dirs[2] = steps.z * gauss_newton_z(ev.grad_z, prob.weight, rc, pc, z, prob.geom, DAMPING)
+        dirs[2] = steps.z * gauss_newton_z(
+            grads[2], prob.weight, rc, pc, z, prob.geom, DAMPING, prior_z
+        )
     biggest = float(np.max(np.abs(dirs[2]))) if dirs[2].size else 0.0
     if biggest > prob.geom.dx:
         dirs[2] *= prob.geom.dx / biggest
@@ -125,7 +145,7 @@ def iterate(
     max_iter: int,
     tol: float,
     tick: Callable[[], None] | None = None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[float]]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[float], str]:
     """Run EM iterations until the relative decrease of E is below ``tol``.
 
     Parameters
@@ -149,12 +169,17 @@ def iterate(
         The final parameters.
     energies : list of float
         E before the first iteration and after each accepted one; non-increasing.
+    stopped : str
+        Why it stopped: ``"tol"`` (E changed by less than ``tol * E``), ``"stalled"`` (no
+        descent direction or no step lowers E) or ``"max_iter"``.
     """
     energies = [prob.energy(r, phi, z)]
     t = 1.0
+    stopped = "max_iter"
     for _ in range(max_iter):
         e0, dirs, slope = _search_direction(prob, r, phi, z, steps)
         if not slope < 0:
+            stopped = "stalled"
             break
         t = min(1.0, 2.0 * t)
         for _ in range(MAX_HALVINGS):
@@ -168,11 +193,13 @@ def iterate(
                 break
             t *= 0.5
         else:
+            stopped = "stalled"
             break
         r, phi, z = cand
         energies.append(e1)
         if tick is not None:
             tick()
         if e0 - e1 <= tol * e0:
+            stopped = "tol"
             break
-    return r, phi, z, energies
+    return r, phi, z, energies, stopped

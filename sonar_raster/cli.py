@@ -16,7 +16,7 @@ from .errors import SonarRasterError
 
 EXIT_BAD_INPUT = 2
 _SIDE_CHOICES = {"port": ("port",), "starboard": ("starboard",), "both": ("port", "starboard")}
-_OUTPUT_SUFFIXES = (".png", ".exr")
+_OUTPUT_SUFFIXES = (".png", ".exr", ".xtf")
 
 
 def _positive(kind: type):
@@ -64,7 +64,8 @@ def _parser() -> argparse.ArgumentParser:
         action="append",
         required=True,
         metavar="OUT",
-        help="output .png (display image) or .exr (linear float); repeatable",
+        help="output .png (display image), .exr (linear float) or .xtf (sonar records); "
+        "repeatable",
     )
     render.add_argument(
         "--range",
@@ -105,7 +106,10 @@ def _parser() -> argparse.ArgumentParser:
         help="coherent model: scatterer spacing (default 0.25; run time grows as 1/spacing^2)",
     )
     render.add_argument(
-        "--seed", type=int, default=None, help="coherent model: seed of the scatterer jitter"
+        "--seed",
+        type=int,
+        default=None,
+        help="seed of the coherent model's scatterer jitter and of the speckle and noise effects",
     )
     render.add_argument(
         "--gl",
@@ -126,6 +130,15 @@ def _parser() -> argparse.ArgumentParser:
         metavar="N",
         help="rays per ping along track (GL renderer, default 2)",
     )
+    render.add_argument(
+        "--chunk-pings",
+        type=_positive(int),
+        default=None,
+        metavar="N",
+        help="render the track in blocks of N pings streamed to disk, so memory does not grow "
+        "with the track (GL renderer; default: whole track at once, or blocks of 512 when it "
+        "would exceed 64 M cells)",
+    )
     render.add_argument("--bits", type=int, choices=(8, 16), default=8, help="PNG bit depth")
     render.add_argument(
         "--dynamic-range",
@@ -137,10 +150,35 @@ def _parser() -> argparse.ArgumentParser:
     )
     render.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
 
+    from ._effects_cli import add_effect_options
+
+    add_effect_options(render)
     _add_invert(sub)
+    _add_dataset(sub)
+    from ._xtf_cli import add_track_parser
+
+    add_track_parser(sub)
     sub.add_parser("scenes", help="list the bundled scenes")
     sub.add_parser("doctor", help="show which GL backends start and the package versions")
     return parser
+
+
+def _add_dataset(sub) -> None:
+    ds = sub.add_parser(
+        "dataset",
+        help="generate a labelled dataset (images, masks, YOLO, COCO) from a config",
+        description="Render N randomised, labelled samples from a dataset config (.toml, or a "
+        "bundled one such as 'dataset_default') into DIR; rerunning resumes a stopped run.",
+    )
+    ds.add_argument("config", help="dataset config file or bundled name")
+    ds.add_argument("-o", "--output", required=True, metavar="DIR", help="output directory")
+    ds.add_argument(
+        "-n", dest="count", type=_positive(int), metavar="N", help="samples (default: config)"
+    )
+    ds.add_argument("--workers", type=_positive(int), default=1, help="worker processes")
+    ds.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler tcp://... or 'local'")
+    ds.add_argument("--seed", type=int, default=None, help="global seed (default: config)")
+    ds.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
 
 
 def _add_invert(sub) -> None:
@@ -150,9 +188,14 @@ def _add_invert(sub) -> None:
         description="Invert IMAGE (.npy, .exr or .png; rows = pings, columns = slant-range "
         "bins from range 0; the renderer's EXR as is) into DIR/elevation.exr, "
         "reflectivity.exr, beam.exr (rows = pings, columns = ground-range cells, NaN = no "
-        "estimate) and DIR/inversion.json.",
+        "estimate), ground.exr (the image in ground range at the recovered elevation), "
+        "even.exr (evenly illuminated, seed Eq. 22), beam_profile.json, seabed.glb/.ply "
+        "(textured mesh), preview_az*.png (four views) and DIR/inversion.json. An XTF file "
+        "(.xtf) is inverted on both sides (or --side) with its bottom track as altitude, into "
+        "DIR/port/ and DIR/starboard/, plus DIR/bottom_track.csv and, with navigation, "
+        "GeoTIFFs DIR/elevation.tif, reflectivity.tif and mosaic.tif.",
     )
-    inv.add_argument("image", help="input image")
+    inv.add_argument("image", help="input image, or an .xtf file")
     inv.add_argument("-o", "--output", required=True, metavar="DIR", help="output directory")
     inv.add_argument(
         "--range-bin",
@@ -181,31 +224,63 @@ def _add_invert(sub) -> None:
         help="along-track distance between pings, for the along-track slope (default: the "
         "ground cell size)",
     )
+    inv.add_argument(
+        "--levels", type=_positive(int), default=3, metavar="N", help="pyramid levels (default 3)"
+    )
+    inv.add_argument(
+        "--tol",
+        type=_positive(float),
+        default=1e-2,
+        help="stop a level when E falls by less than TOL x E in an iteration (default 1e-2)",
+    )
+    inv.add_argument(
+        "--beam",
+        metavar="FILE",
+        help="calibrated mode: fix the beam profile from a beam_profile.json of an earlier run",
+    )
+    inv.add_argument("--no-mesh", action="store_true", help="skip seabed.glb and seabed.ply")
+    inv.add_argument("--no-previews", action="store_true", help="skip the preview renders")
+    inv.add_argument(
+        "--pings", metavar="A:B", help="XTF input: ping range to invert (indices, stop excluded)"
+    )
     inv.add_argument("--quiet", action="store_true", help="no progress bar or summary")
 
 
 def _invert(args: argparse.Namespace) -> int:
-    from ._invert_io import read_side, write_products
-    from .invert import invert
+    from ._invert_io import energy_summary, read_side, write_products
+    from .invert import BeamProfile, invert
 
+    if Path(args.image).suffix.lower() == ".xtf":
+        from ._georef import invert_xtf_command
+
+        return invert_xtf_command(args)
     image, side, attrs = read_side(Path(args.image), args.side)
     range_bin = args.range_bin or attrs.get("sonar:range_bin_m")
     if not range_bin:
         raise SonarRasterError("--range-bin is required for this image")
+    beam = BeamProfile.load(args.beam) if args.beam else None
     result = invert(
         image,
         float(range_bin),
         altitude=args.altitude,
         ping_spacing=args.ping_spacing,
         max_iter=args.max_iter,
+        levels=args.levels,
+        tol=args.tol,
+        beam=beam,
         progress=not args.quiet,
     )
-    written = write_products(result, Path(args.output), side, float(range_bin))
+    written = write_products(
+        result,
+        Path(args.output),
+        side,
+        float(range_bin),
+        mesh=not args.no_mesh,
+        previews=not args.no_previews,
+    )
     if not args.quiet:
-        for k, level in enumerate(result.energies):
-            print(
-                f"level {k + 1}: {len(level) - 1} iterations, E {level[0]:.4g} -> {level[-1]:.4g}"
-            )
+        for line in energy_summary(result):
+            print(line)
         for path in written:
             print(f"wrote {path}")
     return 0
@@ -224,7 +299,7 @@ def _check_outputs(outputs: list[str]) -> list[Path]:
     paths = [Path(o) for o in outputs]
     for p in paths:
         if p.suffix.lower() not in _OUTPUT_SUFFIXES:
-            raise SonarRasterError(f"output {p}: unknown extension; use .png or .exr")
+            raise SonarRasterError(f"output {p}: unknown extension; use .png, .exr or .xtf")
         if not p.parent.is_dir():
             raise SonarRasterError(
                 f"cannot write {p}: directory {p.parent} does not exist; create it first"
@@ -244,6 +319,8 @@ def _render(args: argparse.Namespace) -> int:
         sides=_SIDE_CHOICES[args.side] if args.side else None,
     )
     setup = load_scene_file(_resolve_scene(args.scene), overrides)
+    if _streamed(args, setup):
+        return _render_survey(args, setup, outputs)
     if args.model == "coherent":
         from .coherent import render_coherent, to_raster_units
 
@@ -284,10 +361,25 @@ def _render(args: argparse.Namespace) -> int:
     image.metadata.update(
         {"scene": setup.source, "altitude_m": setup.altitude, "pings": setup.trajectory.n_pings}
     )
+    image.metadata.update(setup.notes)
+    from ._effects_cli import effects_from_args
+
+    effects = effects_from_args(args, setup.effects)
+    if effects is not None:  # no effects: the renderer's image is written as is
+        from .effects import apply_effects
+
+        image = apply_effects(image, effects, seed=args.seed, trajectory=setup.trajectory)
     from .io import write_image
 
     written = []
     for path in outputs:
+        if path.suffix.lower() == ".xtf":
+            from .xtf import write_xtf
+
+            traj = setup.trajectory
+            altitude = traj.positions[:, 2] - setup.scene.ground_z
+            written.append(write_xtf(path, image, traj, altitude=altitude))
+            continue
         written += write_image(
             image, path, bit_depth=args.bits, dynamic_range_db=args.dynamic_range
         )
@@ -298,6 +390,53 @@ def _render(args: argparse.Namespace) -> int:
             f"{bins} bins per side ({', '.join(image.sides)})"
         )
         for path in dict.fromkeys(written):
+            print(f"wrote {path}")
+    return 0
+
+
+#: Cells (pings × bins × sides) above which a GL render streams in blocks by default.
+_STREAM_CELLS = 1 << 26
+
+
+def _streamed(args: argparse.Namespace, setup) -> bool:
+    if args.model != "raster" or args.renderer != "gl":
+        if args.chunk_pings is not None:
+            raise SonarRasterError("--chunk-pings needs the GL raster renderer")
+        return False
+    cells = setup.trajectory.n_pings * setup.sonar.n_bins * len(setup.sonar.sides)
+    return args.chunk_pings is not None or cells > _STREAM_CELLS
+
+
+def _render_survey(args: argparse.Namespace, setup, outputs: list[Path]) -> int:
+    from .raster import RasterSettings
+    from .survey import render_survey
+
+    settings = RasterSettings(
+        oversample=args.oversample or RasterSettings.oversample,
+        along_samples=args.along_samples or RasterSettings.along_samples,
+    )
+    meta = {"scene": setup.source, "altitude_m": setup.altitude, "pings": setup.trajectory.n_pings}
+    meta.update(setup.notes)
+    written, summary = render_survey(
+        setup.scene,
+        setup.sonar,
+        setup.trajectory,
+        list(outputs),
+        chunk_pings=args.chunk_pings or 512,
+        backend=args.gl,
+        settings=settings,
+        bit_depth=args.bits,
+        dynamic_range_db=args.dynamic_range,
+        metadata=meta,
+        progress=not args.quiet,
+    )
+    if not args.quiet:
+        print(
+            f"rendered {setup.source}: {setup.trajectory.n_pings} pings x {setup.sonar.n_bins} "
+            f"bins per side in {summary['blocks']} blocks; {summary['draws']} draws, "
+            f"{summary['draws_skipped_empty']} skipped as empty"
+        )
+        for path in written:
             print(f"wrote {path}")
     return 0
 
@@ -356,8 +495,16 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.command == "render":
             return _render(args)
+        if args.command == "dataset":
+            from .dataset import run_cli
+
+            return run_cli(args)
         if args.command == "invert":
             return _invert(args)
+        if args.command == "track":
+            from ._xtf_cli import track_command
+
+            return track_command(args)
         if args.command == "scenes":
             return _scenes()
         return _doctor()

@@ -83,3 +83,22 @@ def test_cli_streams_with_chunk_pings(tmp_path, capsys):
     )
     assert code == 2
     assert "--chunk-pings needs the GL raster renderer" in capsys.readouterr().err
+
+
+def test_streamed_and_whole_xtf_read_back_the_same(tmp_path):
+    from sonar_raster.xtf import read_xtf
+
+    assert main(["render", "default", "-o", str(tmp_path / "whole.xtf"), "-q"]) == 0
+    code = main(
+        ["render", "default", "-o", str(tmp_path / "s.xtf"), "--chunk-pings", "64", "-q"]
+    )
+    assert code == 0
+    whole, nav_whole = read_xtf(tmp_path / "whole.xtf")
+    streamed, nav = read_xtf(tmp_path / "s.xtf")
+    assert whole.shape == streamed.shape == (400, 1000)
+    for side in whole.sides:
+        err = np.abs(streamed.sides[side] - whole.sides[side]).max()
+        assert err <= 1e-5 * whole.sides[side].max()
+    np.testing.assert_allclose(nav.x, nav_whole.x)
+    np.testing.assert_allclose(nav.altitude, nav_whole.altitude)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.xtf", "whole.xtf"]
