@@ -69,7 +69,7 @@ layout(triangles) in;
 layout(triangle_strip, max_vertices = 3) out;
 in vec3 v_q[];
 in float v_alpha[];
-uniform float alpha_span_max;   // triangles spanning more angle than this are culled (wrap)
+uniform float alpha_span_max;   // more angle than this (pi) means the triangle wraps over the top
 uniform float frame_sign;       // det of the (along, side, up) frame: fixes the normal's sign
 layout(std430, binding = 0) readonly buffer FaceData { float face_refl[]; };
 flat out vec4 g_plane;          // unit normal (xyz, segment frame) and offset n.q

@@ -549,7 +549,8 @@ class RasterRenderer:
             "row_scale": 2.0 / (draw.spacing * draw.rows),
             "row_offset": 2.0 * 0.5 / draw.rows - 1.0,
             "far_range": far,
-            "alpha_span_max": 0.5 * math.pi,
+            # A triangle can only span more than pi of look angle by wrapping over the top.
+            "alpha_span_max": math.pi,
             "spacing": draw.spacing,
             "rows_per_ping": float(along),
             "row_width": seg.width / along,

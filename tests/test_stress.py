@@ -485,12 +485,6 @@ def test_scaling_scales_image_by_s_squared(gl, survey, k, u):
 
 # --------------------------------------------------------------------------- two renderers
 
-#: Known bug (tests/test_regressions.py::test_low_altitude_flat_seabed_keeps_its_nadir_energy):
-#: a triangle straddling the track under the sonar is culled when it spans more than 90° of look
-#: angle, which the default 20-bin subdivision edge allows below an altitude of 10 bins. The
-#: flat-seabed properties keep the altitude above that until the fix lands; then set this to 0.
-NADIR_CULL_MIN_ALTITUDE_BINS = 10.5
-
 SMOOTH_BEAMS = st.one_of(
     st.just(BeamPattern.uniform()), st.floats(30.0, 120.0).map(BeamPattern.gaussian)
 )
@@ -509,12 +503,6 @@ def test_gl_agrees_with_the_reference(gl, survey):
     """The GL image and the numpy patch reference (an independent discretisation) agree."""
     from sonar_raster.reference import render_reference
 
-    # the known nadir cull (see NADIR_CULL_MIN_ALTITUDE_BINS) also drops object faces that pass
-    # close under the sonar: keep every surface 10.5 bins below the track until it is fixed
-    clearance = float(survey.traj.positions[:, 2].min()) - max(
-        float(p.vertices[:, 2].max()) for p in survey.parts
-    )
-    assume(clearance >= NADIR_CULL_MIN_ALTITUDE_BINS * survey.sonar.range_bin)
     ref = render_reference(survey.scene, survey.sonar, survey.traj)
     assume(any(float(a.max()) > 0 for a in ref.sides.values()))
     gl.settings = RasterSettings(oversample=4.0, along_samples=16)
@@ -543,7 +531,6 @@ def flat_surveys(draw, max_bins: int = 512):
     """A flat plane covering the swath, a level track with constant roll and >= 2 pings."""
     sonar = draw(sonars(max_bins=max_bins, beams=ENERGY_BEAMS))
     traj = draw(tracks(sonar, max_pings=8, min_pings=2, alt_frac=0.8, shapes=("straight",)))
-    assume(traj.positions[0, 2] >= NADIR_CULL_MIN_ALTITUDE_BINS * sonar.range_bin)
     roll = math.radians(draw(st.floats(-3.0, 3.0)))
     traj = Trajectory(traj.positions, traj.headings, np.full(traj.n_pings, roll))
     x0, x1, y0, y1 = _swath_box(sonar, traj)
