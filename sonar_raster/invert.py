@@ -284,7 +284,13 @@ def invert(
     SonarRasterError
         For an empty, non-finite or negative image, or bad sizes.
     """
-    image = _check(slant, range_bin, levels)
+    original = _check(slant, range_bin, levels)
+    # Fit a copy scaled by a power of two (exact) to order one, so no weight or Gauss-Newton
+    # matrix under- or overflows whatever the image's units; Φ takes the scale back at the end.
+    scale = _power_of_two_scale(original)
+    image = original / scale
+    if beam is not None:
+        beam = BeamProfile(beam.depression, beam.gain / scale)
     alt = _altitudes(image, range_bin, altitude)
     dx = float(ground_bin or range_bin)
     x = ground_axis(alt, range_bin, image.shape[1], dx)
@@ -301,8 +307,27 @@ def invert(
         energies.append(e)
         runs.append(run)
         coarse = level
-    inv = _result(chain[-1], state, ground, valid, energies)
-    return _with_products(inv, image, range_bin, geom.dy, runs)
+    inv = _rescaled(_result(chain[-1], state, ground, valid, energies), scale)
+    return _with_products(inv, original, range_bin, geom.dy, runs)
+
+
+def _power_of_two_scale(image: np.ndarray) -> float:
+    """2**k nearest the image's largest value (1 for an all-zero image)."""
+    top = float(image.max(initial=0.0))
+    return 2.0 ** round(math.log2(top)) if top > 0 else 1.0
+
+
+def _rescaled(inv: Inversion, scale: float) -> Inversion:
+    """Undo the fitting scale: the image and Φ carry it, R and Z do not; E goes as its square."""
+    from dataclasses import replace
+
+    if scale == 1.0:
+        return inv
+    profile = BeamProfile(inv.profile.depression, inv.profile.gain * scale)
+    energies = [[e * scale * scale for e in level] for level in inv.energies]
+    return replace(
+        inv, ground=inv.ground * scale, beam=inv.beam * scale, profile=profile, energies=energies
+    )
 
 
 def _with_products(
