@@ -9,10 +9,29 @@ seabed rendered by :mod:`sonar_raster.raster`, ``G = w Φ R cos θ`` with ``w`` 
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy import ndimage
 
 from .errors import SonarRasterError
+
+
+def check_slant(slant: np.ndarray, range_bin: float, min_pings: int = 1) -> np.ndarray:
+    """A slant-range image (pings x bins, linear, finite, >= 0) as float64, or one clear error."""
+    a = np.asarray(slant)
+    if a.ndim != 2 or a.shape[0] < min_pings or a.shape[1] < 4:
+        raise SonarRasterError(
+            f"image must be 2-D with >= {min_pings} ping(s) and >= 4 range bins, got {a.shape}"
+        )
+    if not np.issubdtype(a.dtype, np.number) or not np.all(np.isfinite(a)):
+        raise SonarRasterError("image must hold finite numbers")
+    if np.any(a < 0):
+        raise SonarRasterError("image intensities must be >= 0 (linear, not dB)")
+    if not (math.isfinite(range_bin) and range_bin > 0):
+        raise SonarRasterError(f"range bin must be > 0 metres, got {range_bin!r}")
+    return a.astype(np.float64)
+
 
 #: Fraction of the way from the water-column floor to the bright seabed that marks the return.
 FIRST_RETURN_FRACTION = 0.05

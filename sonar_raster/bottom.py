@@ -41,6 +41,7 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from scipy import ndimage
 
+from ._ground import check_slant
 from .errors import SonarRasterError
 
 __all__ = ["BottomTrack", "first_return", "track_bottom", "track_side"]
@@ -82,19 +83,6 @@ class BottomTrack:
     valid: np.ndarray
     raw: np.ndarray
     contrast_db: np.ndarray
-
-
-def _check(slant: np.ndarray, range_bin: float) -> np.ndarray:
-    a = np.asarray(slant)
-    if a.ndim != 2 or a.shape[0] < 1 or a.shape[1] < 4:
-        raise SonarRasterError(f"image must be 2-D with >= 4 range bins, got shape {a.shape}")
-    if not np.issubdtype(a.dtype, np.number) or not np.all(np.isfinite(a)):
-        raise SonarRasterError("image must hold finite numbers")
-    if np.any(a < 0):
-        raise SonarRasterError("image intensities must be >= 0 (linear, not dB)")
-    if not (math.isfinite(range_bin) and range_bin > 0):
-        raise SonarRasterError(f"range bin must be > 0 metres, got {range_bin!r}")
-    return a.astype(np.float64)
 
 
 def _blanking(image: np.ndarray) -> int:
@@ -201,7 +189,7 @@ def _smooth(clean: np.ndarray, size: int) -> np.ndarray:
 def _detect(
     slant: np.ndarray, range_bin: float, window: int, min_contrast_db: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    image = _check(slant, range_bin)
+    image = check_slant(slant, range_bin)
     if not (isinstance(window, (int, np.integer)) and window >= 2):
         raise SonarRasterError(f"window must be an integer >= 2 bins, got {window!r}")
     own = _log_image(image)

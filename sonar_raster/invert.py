@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from . import _invert_pyramid as pyramid
-from ._ground import first_return, ground_axis, ground_to_slant, slant_to_ground
+from ._ground import check_slant, first_return, ground_axis, ground_to_slant, slant_to_ground
 from ._ground_model import Geometry
 from ._invert_em import Problem, Steps, iterate
 from ._invert_regular import angle_bins, nearest_lit, profile_median, shadows
@@ -207,18 +207,9 @@ def _start(level: pyramid.Level, bins: np.ndarray, centres: np.ndarray, prev, co
 
 
 def _check(slant: np.ndarray, range_bin: float, levels: int) -> np.ndarray:
-    a = np.asarray(slant)
-    if a.ndim != 2 or a.shape[0] < 2 or a.shape[1] < 4:
-        raise SonarRasterError(f"image must be 2-D with >= 2 pings and >= 4 bins, got {a.shape}")
-    if not np.issubdtype(a.dtype, np.number) or not np.all(np.isfinite(a)):
-        raise SonarRasterError("image must hold finite numbers")
-    if np.any(a < 0):
-        raise SonarRasterError("image intensities must be >= 0 (linear, not dB)")
-    if not (math.isfinite(range_bin) and range_bin > 0):
-        raise SonarRasterError(f"range bin must be > 0 metres, got {range_bin!r}")
     if levels < 1:
         raise SonarRasterError(f"levels must be >= 1, got {levels}")
-    return a.astype(np.float64)
+    return check_slant(slant, range_bin, min_pings=2)
 
 
 def _altitudes(slant: np.ndarray, range_bin: float, altitude) -> np.ndarray:
