@@ -408,8 +408,15 @@ def _streamed(args: argparse.Namespace, setup) -> bool:
 
 
 def _render_survey(args: argparse.Namespace, setup, outputs: list[Path]) -> int:
+    from ._effects_cli import effects_from_args
     from .raster import RasterSettings
     from .survey import render_survey
+
+    if effects_from_args(args, setup.effects) is not None:
+        raise SonarRasterError(
+            "sensor effects are not applied to surveys streamed in blocks (--chunk-pings, or "
+            "over 64 M cells) yet; render fewer pings at a time, or add --no-effects"
+        )
 
     settings = RasterSettings(
         oversample=args.oversample or RasterSettings.oversample,

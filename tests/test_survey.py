@@ -89,9 +89,7 @@ def test_streamed_and_whole_xtf_read_back_the_same(tmp_path):
     from sonar_raster.xtf import read_xtf
 
     assert main(["render", "default", "-o", str(tmp_path / "whole.xtf"), "-q"]) == 0
-    code = main(
-        ["render", "default", "-o", str(tmp_path / "s.xtf"), "--chunk-pings", "64", "-q"]
-    )
+    code = main(["render", "default", "-o", str(tmp_path / "s.xtf"), "--chunk-pings", "64", "-q"])
     assert code == 0
     whole, nav_whole = read_xtf(tmp_path / "whole.xtf")
     streamed, nav = read_xtf(tmp_path / "s.xtf")
@@ -102,3 +100,20 @@ def test_streamed_and_whole_xtf_read_back_the_same(tmp_path):
     np.testing.assert_allclose(nav.x, nav_whole.x)
     np.testing.assert_allclose(nav.altitude, nav_whole.altitude)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.xtf", "whole.xtf"]
+
+
+def test_effects_are_refused_rather_than_dropped_when_streaming(tmp_path, capsys):
+    out = tmp_path / "s.exr"
+    args = [
+        "render",
+        "flat_calibration",
+        "-o",
+        str(out),
+        "--chunk-pings",
+        "7",
+        "--speckle",
+        "exponential",
+    ]
+    assert main(args) == 2
+    assert "not applied to surveys streamed" in capsys.readouterr().err
+    assert not out.exists()
