@@ -637,6 +637,8 @@ class RasterRenderer:
             corners[:, 1].max(),
             margin,
         )
+        if len(candidates) > 0.5 * geo["n_faces"]:
+            return self._whole_scene()  # most of the scene is near: the exact test cannot pay
         f = geo["faces_cpu"][candidates]
         rel = geo["vertices"][f.reshape(-1)] - start
         shear = seg.shear  # (travel, starboard, up) of each corner relative to its fan
