@@ -26,7 +26,6 @@ from ._dataset_labels import annotate, instances_from_labels, shadow_owners, to_
 from ._dataset_scene import SampleScene, draw_sample
 from .errors import SonarRasterError
 from .image import SonarImage
-from .trajectory import Trajectory
 
 CLASS_NAMES = {0: "background", 1: "highlight", 2: "shadow"}
 _TMP: dict[str, str] = {}
@@ -71,9 +70,7 @@ def _seabed_alone(renderer: Any, sample: SampleScene, image: SonarImage) -> dict
     seabed = {s: np.zeros_like(a) for s, a in image.sides.items()}
     rows = sample.object_pings
     if rows is not None:  # one render of just those pings: the track splits at the gaps
-        t = sample.trajectory
-        part = Trajectory(t.positions[rows], t.headings[rows], t.roll[rows])
-        alone = renderer.render(sample.seabed, sample.sonar, part)
+        alone = renderer.render(sample.seabed, sample.sonar, sample.trajectory.subset(rows))
         for side, values in alone.sides.items():
             seabed[side][rows] = values
     return seabed

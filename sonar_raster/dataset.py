@@ -97,7 +97,7 @@ class DatasetSummary:
 
 
 def _atomic_write(path: Path, data: bytes) -> None:
-    tmp = path.with_name(f".{path.name}.{secrets.token_hex(6)}.tmp")
+    tmp = path.with_name(f".{path.name}.{secrets.token_hex(6)}.tmp")  # resume sweeps .*.tmp
     try:
         with open(tmp, "xb") as fh:
             fh.write(data)

@@ -23,12 +23,12 @@ from .seabed import Heightfield, level_of_detail, make_seabed, reflectivity_map
 from .sonar import SIDES, BeamPattern, Sonar
 from .trajectory import Trajectory
 
-log = logging.getLogger(__name__)
-
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover
     import tomli as tomllib
+
+log = logging.getLogger(__name__)
 
 MODEL_SUFFIXES = (".wrl", ".vrml", ".gltf", ".glb", ".obj", ".ply", ".stl", ".off")
 _Y_UP_SUFFIXES = (".gltf", ".glb", ".wrl", ".vrml")  # y-up by their specifications

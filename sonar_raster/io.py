@@ -16,6 +16,7 @@ from collections.abc import Callable
 from datetime import datetime, timezone
 from importlib import metadata as importlib_metadata
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import OpenImageIO as oiio
@@ -255,12 +256,23 @@ def _check_directory(path: Path) -> None:
         raise SonarRasterError(f"cannot write {path}: {directory} is not a directory")
 
 
+def temp_name(final: Path) -> Path:
+    """A hidden, unique temporary name beside ``final`` (``.<name>.<token><suffix>``)."""
+    return final.with_name(f".{final.name}.{secrets.token_hex(6)}{final.suffix}")
+
+
+def quantised_codes(codes: np.ndarray, bit_depth: int) -> tuple[np.ndarray, Any]:
+    """Display codes in [0, 1] as 8- or 16-bit integers, and their OpenImageIO type."""
+    dtype, fmt = (np.uint8, oiio.UINT8) if bit_depth == 8 else (np.uint16, oiio.UINT16)
+    return np.rint(codes * np.iinfo(dtype).max).astype(dtype), fmt
+
+
 def _commit(jobs: list[tuple[Path, Callable[[Path], None]]]) -> list[Path]:
     """Run each writer on a temporary file, then rename all of them into place."""
     temps: list[Path] = []
     try:
         for final, writer in jobs:
-            tmp = final.with_name(f".{final.name}.{secrets.token_hex(6)}{final.suffix}")
+            tmp = temp_name(final)
             temps.append(tmp)
             try:
                 writer(tmp)
@@ -304,8 +316,8 @@ def _write_exr(tmp: Path, sides: dict[str, np.ndarray], attrs: dict) -> None:
 
 
 def _write_png(tmp: Path, codes: np.ndarray, bit_depth: int, attrs: dict) -> None:
-    dtype, fmt = (np.uint8, oiio.UINT8) if bit_depth == 8 else (np.uint16, oiio.UINT16)
-    quantised = np.rint(codes * np.iinfo(dtype).max).astype(dtype)[:, :, np.newaxis]
+    quantised, fmt = quantised_codes(codes, bit_depth)
+    quantised = quantised[:, :, np.newaxis]
     spec = oiio.ImageSpec(quantised.shape[1], quantised.shape[0], 1, fmt)
     spec.channelnames = ("Y",)
     for name, value in attrs.items():

@@ -131,8 +131,8 @@ def render_survey(
     if bit_depth not in (8, 16):
         raise SonarRasterError(f"PNG bit depth must be 8 or 16, got {bit_depth!r}")
     exr_final = next((p for p in paths if p.suffix.lower() == ".exr"), None)
-    exr_tmp = _temp_name(exr_final or paths[0].with_suffix(".exr"))
-    xtf_tmp = _temp_name(xtf_final) if xtf_final else None
+    exr_tmp = sio.temp_name(exr_final or paths[0].with_suffix(".exr"))
+    xtf_tmp = sio.temp_name(xtf_final) if xtf_final else None
     temps: list[Path] = [exr_tmp] + ([xtf_tmp] if xtf_tmp else [])
     try:
         stats, summary, meta = _stream_blocks(
@@ -155,13 +155,13 @@ def render_survey(
                 jobs.append((xtf_tmp, path))
                 continue
             if path.suffix.lower() == ".png":
-                tmp = _temp_name(path)
+                tmp = sio.temp_name(path)
                 temps.append(tmp)
                 _png_from_exr(exr_tmp, tmp, header, mapping, bit_depth, chunk_pings)
                 jobs.append((tmp, path))
             elif path == exr_final:
                 jobs.append((exr_tmp, path))
-            sidecar = _temp_name(path.with_suffix(".json"))
+            sidecar = sio.temp_name(path.with_suffix(".json"))
             temps.append(sidecar)
             doc = sio._sidecar(header, mapping)
             doc["shape"] = [trajectory.n_pings, sonar.n_bins]  # type: ignore[index]
@@ -240,8 +240,7 @@ class _XtfStream:
     def write(self, block: SonarImage) -> None:
         first = int(block.metadata["first_ping"])
         rows = slice(first, first + block.shape[0])
-        t = self.trajectory
-        poses = Trajectory(t.positions[rows], t.headings[rows], t.roll[rows], t.pitch[rows])
+        poses = self.trajectory.subset(rows)
         self.writer.write(block, poses, poses.positions[:, 2] - self.ground_z)
 
     def close(self) -> None:
@@ -265,7 +264,7 @@ def _png_from_exr(
         spec = inp.spec()
         names = list(spec.channelnames)
         width = spec.width * len(names)
-        dtype, fmt = (np.uint8, oiio.UINT8) if bit_depth == 8 else (np.uint16, oiio.UINT16)
+        fmt = sio.quantised_codes(np.zeros(0), bit_depth)[1]
         out_spec = oiio.ImageSpec(width, spec.height, 1, fmt)
         out_spec.channelnames = ("Y",)
         for name, value in sio._png_attributes(header, mapping, bit_depth).items():
@@ -283,7 +282,7 @@ def _png_from_exr(
                 codes, _ = sio.display_mapping(
                     display, mapping["dynamic_range_db"], mapping["ref_level_m2"]
                 )
-                quantised = np.rint(codes * np.iinfo(dtype).max).astype(dtype)
+                quantised = sio.quantised_codes(codes, bit_depth)[0]
                 if not out.write_scanlines(y0, y1, 0, quantised[:, :, np.newaxis]):
                     raise SonarRasterError(f"cannot write {tmp}: {out.geterror()}")
         finally:
@@ -294,9 +293,3 @@ def _png_from_exr(
 
 def _whole_track_metadata(metadata: dict) -> dict:
     return {k: v for k, v in metadata.items() if k not in _PER_BLOCK}
-
-
-def _temp_name(final: Path) -> Path:
-    import secrets
-
-    return final.with_name(f".{final.name}.{secrets.token_hex(6)}{final.suffix}")

@@ -167,6 +167,12 @@ class Trajectory:
         pos = np.stack([data["x"], data["y"], data["z"]], axis=1)
         return cls(pos, np.radians(data["heading_deg"]), roll, pitch)
 
+    def subset(self, rows: slice | np.ndarray) -> Trajectory:
+        """The pings ``rows`` (a slice, indices or a mask) with every pose field."""
+        return Trajectory(
+            self.positions[rows], self.headings[rows], self.roll[rows], self.pitch[rows]
+        )
+
     @property
     def typical_spacing(self) -> float:
         """Median distance between consecutive pings, or 1 m if the sonar never moves."""

@@ -105,13 +105,20 @@ def test_pitch_and_heading_come_from_the_csv(tmp_path):
     assert seg.shear @ (point - seg.origin) == pytest.approx([u, side, up])
 
 
+def test_subset_keeps_every_pose_field():
+    traj = _track(10, crab_deg=4.0, pitch_deg=3.0)
+    part = traj.subset(slice(2, 6))
+    for name in ("positions", "headings", "roll", "pitch"):
+        np.testing.assert_array_equal(getattr(part, name), getattr(traj, name)[2:6])
+
+
 def test_heading_far_off_the_course_is_refused():
     traj = _track(5, crab_deg=75.0)
     with pytest.raises(SonarRasterError, match="off the direction of travel"):
         traj.segments(0.01)
 
 
-def test_coherent_model_refuses_crab(gl):
+def test_coherent_model_refuses_crab():
     from sonar_raster.coherent import render_coherent
 
     scene = build_scene([rect_seabed(-10.0, 10.0, -10.0, 10.0)])

@@ -8,7 +8,6 @@ import pytest
 from sonar_raster.bundled import DEFAULT_SCENE, bundled_scene, list_bundled
 from sonar_raster.description import load_scene_file
 from sonar_raster.reference import render_reference
-from sonar_raster.trajectory import Trajectory
 
 NAMES = [name for name, _ in list_bundled()]
 
@@ -27,7 +26,7 @@ def test_gl_matches_reference(gl, name):
     setup = load_scene_file(bundled_scene(name))
     traj = setup.trajectory
     mid = slice(traj.n_pings // 2 - 3, traj.n_pings // 2 + 3)
-    six = Trajectory(traj.positions[mid], traj.headings[mid], traj.roll[mid])
+    six = traj.subset(mid)
     got = gl.render(setup.scene, setup.sonar, six)
     ref = render_reference(setup.scene, setup.sonar, six)
     for side in setup.sonar.sides:

@@ -433,9 +433,7 @@ def fine_contrast_row(case: Case, spacing: float, pings: int) -> Row:
     fine = replace(sonar, range_bin=sonar.range_bin / FINE_DIVISOR)
     rows = slice(max(0, case.trajectory.n_pings // 2 - pings // 2), None)
     rows = slice(rows.start, min(case.trajectory.n_pings, rows.start + pings))
-    traj = Trajectory(
-        case.trajectory.positions[rows], case.trajectory.headings[rows], case.trajectory.roll[rows]
-    )
+    traj = case.trajectory.subset(rows)
     from sonar_raster.coherent import HorizontalBeam
 
     seconds, image = timed(

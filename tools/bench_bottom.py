@@ -66,8 +66,10 @@ def main() -> int:
         image = render_raster(build_scene([plane(200.0)]), sonar, track)
         clean = {s: v.astype(np.float64) for s, v in image.sides.items()}
         cases = [("clean", clean)] + [
-            (f"speckle + water {100 * n:.0f} %", {s: _noisy(v, altitude, n, rng)
-                                                  for s, v in clean.items()})  # fmt: skip
+            (
+                f"speckle + water {100 * n:.0f} %",
+                {s: _noisy(v, altitude, n, rng) for s, v in clean.items()},
+            )  # fmt: skip
             for n in (float(x) for x in args.noise.split(","))
         ]
         for label, sides in cases:

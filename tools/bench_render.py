@@ -92,16 +92,12 @@ def window(trajectory: Trajectory, pings: int) -> slice:
     return slice(start, min(trajectory.n_pings, start + pings))
 
 
-def sub_trajectory(trajectory: Trajectory, rows: slice) -> Trajectory:
-    return Trajectory(trajectory.positions[rows], trajectory.headings[rows], trajectory.roll[rows])
-
-
 def bundled_cases(name: str, pings: int) -> list[Case]:
     """The window case and the full-track case of one bundled scene."""
     setup = load_scene_file(bundled_scene(name))
     full = setup.trajectory
     rows = window(full, pings)
-    win = sub_trajectory(full, rows)
+    win = full.subset(rows)
     return [
         Case(name, f"{name}[{rows.start}:{rows.stop}]", setup.scene, setup.sonar, win, slice(None)),
         Case(name, f"{name}[full]", setup.scene, setup.sonar, full, rows),
@@ -174,7 +170,7 @@ def rel_l1(sides: dict, acc: Accuracy | None, rows: slice) -> float:
 
 def reference_accuracy(case: Case, divisor: float) -> Accuracy:
     """``render_reference`` at patch = range_bin / divisor on the case's error rows."""
-    traj = sub_trajectory(case.trajectory, case.err_rows)
+    traj = case.trajectory.subset(case.err_rows)
     patch = case.sonar.range_bin / divisor
     seconds, image = timed(lambda: render_reference(case.scene, case.sonar, traj, patch_size=patch))
     sides = {s: a.astype(np.float64) for s, a in image.sides.items()}
