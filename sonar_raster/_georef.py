@@ -323,7 +323,7 @@ def invert_xtf_command(args: argparse.Namespace) -> int:
 
     out = Path(args.output)
     options = {"max_iter": args.max_iter}
-    for name in ("levels", "tol"):
+    for name in ("levels", "tol", "flat_prior"):
         if getattr(args, name, None) is not None:
             options[name] = getattr(args, name)
     if getattr(args, "beam", None):

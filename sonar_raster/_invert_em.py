@@ -14,6 +14,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import ndimage
 
 from ._ground_model import Geometry, energy, evaluate, gauss_newton_z
 
@@ -46,11 +47,14 @@ class Problem:
     edge : float
         ε of the edge-preserving reflectivity roughness (0: quadratic); see
         :func:`sonar_raster._ground_model.roughness`.
-    smooth_tilt : float
-        Weight of the tilt prior ``Σ_i s_i²`` of E, ``s_i = Σ_j c_j Z_ij`` the least-squares
-        across-track slope of ping i.
-    tilt : ndarray, shape (cells,), optional
-        The slope weights ``c_j = (x_j − x̄) / Σ (x − x̄)²``; needed when ``smooth_tilt > 0``.
+    flat : float
+        Weight of the flat-seabed prior ``Σ (G (Z − Z_ref))²`` of E (0: none), ``G`` a Gaussian
+        low-pass along and across track (see :meth:`low_pass`).
+    flat_sigma : tuple of float
+        σ of ``G`` in cells, (along track, across track).
+    z_ref : ndarray, shape (pings, cells), optional
+        The reference surface of the prior (a flat seabed at each ping's altitude); needed
+        when ``flat > 0``.
     """
 
     image: np.ndarray
@@ -61,8 +65,23 @@ class Problem:
     smooth: float = 0.0
     smooth_phi: float = 0.0
     edge: float = 0.0
-    smooth_tilt: float = 0.0
-    tilt: np.ndarray | None = None
+    flat: float = 0.0
+    flat_sigma: tuple[float, float] = (1.0, 1.0)
+    z_ref: np.ndarray | None = None
+
+    def low_pass(self, values: np.ndarray) -> np.ndarray:
+        """``G values``: Gaussian of σ ``flat_sigma`` cells, zero outside the grid.
+
+        Zero padding makes ``G`` a symmetric matrix, its own adjoint in the gradient.
+        """
+        return ndimage.gaussian_filter(values, self.flat_sigma, mode="constant")
+
+    def flat_diagonal(self) -> float:
+        """``Σ_k G_kj²`` of an inner cell: the diagonal of ``GᵀG``."""
+        size = [int(8 * s) + 3 for s in self.flat_sigma]
+        delta = np.zeros(size)
+        delta[size[0] // 2, size[1] // 2] = 1.0
+        return float(np.sum(self.low_pass(delta) ** 2))
 
     def cells(self, r: np.ndarray, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Per-cell R and Φ from the parameters (flat R, Φ profile)."""
@@ -73,8 +92,8 @@ class Problem:
         rc, pc = self.cells(r, phi)
         data = energy(self.image, self.weight, rc, pc, z, self.geom, self.smooth, self.edge)
         data += self.smooth_phi * float(np.sum(np.diff(phi, 2) ** 2))
-        if self.smooth_tilt > 0 and self.tilt is not None:
-            data += self.smooth_tilt * float(np.sum((z @ self.tilt) ** 2))
+        if self.flat > 0 and self.z_ref is not None:
+            data += self.flat * float(np.sum(self.low_pass(z - self.z_ref) ** 2))
         return data
 
 
@@ -105,9 +124,9 @@ def _search_direction(
         ev.grad_z,
     ]
     prior_z = np.zeros_like(z)
-    if prob.smooth_tilt > 0 and prob.tilt is not None:
-        grads[2] = grads[2] + 2.0 * prob.smooth_tilt * np.outer(z @ prob.tilt, prob.tilt)
-        prior_z += 2.0 * prob.smooth_tilt * prob.tilt[None, :] ** 2
+    if prob.flat > 0 and prob.z_ref is not None:
+        grads[2] = grads[2] + 2.0 * prob.flat * prob.low_pass(prob.low_pass(z - prob.z_ref))
+        prior_z += 2.0 * prob.flat * prob.flat_diagonal()
     if prob.smooth_phi > 0 and len(phi) > 2:
         d2 = np.diff(phi, 2)
         adj = np.zeros_like(phi)

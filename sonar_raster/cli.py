@@ -238,6 +238,14 @@ def _add_invert(sub) -> None:
         metavar="FILE",
         help="calibrated mode: fix the beam profile from a beam_profile.json of an earlier run",
     )
+    inv.add_argument(
+        "--flat-prior",
+        type=_positive(float),
+        metavar="W",
+        help="prior that the seabed is flat at the altitude on scales above 0.2 x altitude "
+        "(weight W, try 0.25): for broadly flat seabeds with small relief and a trusted "
+        "--altitude; it flattens broad mounds and trenches",
+    )
     inv.add_argument("--no-mesh", action="store_true", help="skip seabed.glb and seabed.ply")
     inv.add_argument("--no-previews", action="store_true", help="skip the preview renders")
     inv.add_argument(
@@ -268,6 +276,7 @@ def _invert(args: argparse.Namespace) -> int:
         levels=args.levels,
         tol=args.tol,
         beam=beam,
+        flat_prior=args.flat_prior or 0.0,
         progress=not args.quiet,
     )
     written = write_products(

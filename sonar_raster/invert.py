@@ -54,11 +54,9 @@ BEAM_SMOOTHING = 100.0
 #: (0: quadratic). Jumps in R much larger than ε (patches of another material) cost
 #: ``2ε |ΔR|`` instead of ``ΔR²``, so they stay in R instead of turning into relief.
 REFLECTIVITY_EDGE = 0.0
-#: Weight of the tilt prior on each ping's least-squares across-track slope of Z: a 1 % slope
-#: costs this fraction of the ping's mean squared data. A plane through the sonar's track
-#: has the same ``x Zx − Z`` (so the same Lambertian return) at every tilt; only the slant
-#: ranges tell tilts apart, weakly, and the fit can drift along that direction.
-TILT_PRIOR = 0.0
+#: σ of the flat-seabed prior's low-pass (``flat_prior`` of :func:`invert`), as a fraction of
+#: the median altitude (2 m at 10 m).
+FLAT_PRIOR_SCALE = 0.2
 
 
 @dataclass(frozen=True)
@@ -233,6 +231,7 @@ def invert(
     tol: float = 1e-2,
     beam: BeamProfile | None = None,
     steps: Steps | None = None,
+    flat_prior: float = 0.0,
     progress: bool = False,
 ) -> Inversion:
     """Recover reflectivity R, beam profile Φ and elevation Z from one side of an image.
@@ -263,6 +262,17 @@ def invert(
         Calibrated mode: Φ fixed from this profile; only R and Z are estimated.
     steps : Steps, optional
         Relative step weights of R, Φ, Z (default all 1).
+    flat_prior : float
+        Weight of a prior that the seabed is flat at the altitude on scales above
+        ``FLAT_PRIOR_SCALE`` × the altitude (2 m at 10 m): ``Σ (G (Z − Z_flat))²``, ``G`` a
+        Gaussian low-pass, a deviation of one range bin costing ``flat_prior`` times the mean
+        squared data of a ground cell. 0 (default) leaves it out. The level, the tilt and the
+        bending of Z across the swath barely change the image (R and Φ absorb them), so
+        without it they drift with every mismatch between model and image; with it they stay
+        at the altitude's. Use it over broadly flat seabeds with small relief (ripples,
+        roughness) and a trusted altitude (``altitude``); it flattens relief broader than the
+        low-pass (a mound of 1.5 m σ, a trench), and on ripples with the first-return
+        altitude it keeps that altitude's bias. See ``tools/bench_inversion.py``.
     progress : bool
         Show a progress bar per level.
 
@@ -276,6 +286,8 @@ def invert(
         For an empty, non-finite or negative image, or bad sizes.
     """
     original = _check(slant, range_bin, levels)
+    if not (math.isfinite(flat_prior) and flat_prior >= 0):
+        raise SonarRasterError(f"flat prior must be a number >= 0, got {flat_prior!r}")
     # Fit a copy scaled by a power of two (exact) to order one, so no weight or Gauss-Newton
     # matrix under- or overflows whatever the image's units; Φ takes the scale back at the end.
     scale = _power_of_two_scale(original)
@@ -294,7 +306,9 @@ def invert(
     state, coarse, energies, runs = None, None, [], []
     for k, level in enumerate(chain):
         label = f"level {k + 1}/{len(chain)} (1/{level.factor} res.)"
-        state, e, run = _solve(level, state, coarse, beam, steps, max_iter, tol, progress, label)
+        state, e, run = _solve(
+            level, state, coarse, beam, steps, max_iter, tol, flat_prior, progress, label
+        )
         energies.append(e)
         runs.append(run)
         coarse = level
@@ -340,7 +354,7 @@ def _data_scale(level: pyramid.Level, r: np.ndarray) -> float:
     return scale / r2 if r2 > 0 else 0.0
 
 
-def _solve(level, prev, coarse, beam, steps, max_iter, tol, progress, label="level"):
+def _solve(level, prev, coarse, beam, steps, max_iter, tol, flat_prior, progress, label):
     """Fit one level; below the coarsest, from three starts, keeping the lowest final E.
 
     The starts are the coarser level's R, Φ and Z; its R and Φ over the flat seabed at the
@@ -355,9 +369,8 @@ def _solve(level, prev, coarse, beam, steps, max_iter, tol, progress, label="lev
     phi2 = float(np.mean(st.phi**2)) or 1.0
     smooth_phi = BEAM_SMOOTHING * scale * level.image.shape[0] / phi2
     edge = REFLECTIVITY_EDGE * float(np.mean(st.r))
-    xc = level.geom.x - level.geom.x.mean()
-    tilt = xc / float(np.sum(xc * xc))
-    smooth_tilt = TILT_PRIOR * scale * level.image.shape[1] / 0.01**2
+    unit = level.geom.range_bin / level.factor  # the image's range bin
+    sigma = FLAT_PRIOR_SCALE * float(np.median(level.altitude))
     prob = Problem(
         level.slant,
         level.slant_weight,
@@ -367,8 +380,9 @@ def _solve(level, prev, coarse, beam, steps, max_iter, tol, progress, label="lev
         smooth,
         smooth_phi,
         edge,
-        smooth_tilt,
-        tilt,
+        flat_prior * scale / unit**2,
+        (sigma / level.geom.dy, sigma / level.geom.dx),
+        np.repeat(-level.altitude[:, None], level.image.shape[1], axis=1),
     )
     runs = [("coarser", st)]
     if prev is not None:

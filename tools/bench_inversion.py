@@ -20,9 +20,12 @@ first bottom return), the correlation of Z, of R (where R varies) and of the bea
 Table 2, run time against error on the ripples (free): levels 1, 2, 3 × a fixed number of
 iterations per level and start, then 3 levels with the stopping threshold ``tol`` (default 1e-2).
 
+Table 1 can also run with the flat-seabed prior (``--flat-prior W``) and the true altitude
+(``--known-altitude``) instead of the first return.
+
 Usage: ``python tools/bench_inversion.py [--max-iter 100] [--seabeds flat,ripples,...]
-[--sweep 10,30,100] [--out bench_out]``; the plot goes to ``OUT/inversion_time_vs_error.png``
-and a small copy to ``docs/inversion_time_vs_error.png``.
+[--sweep 10,30,100] [--flat-prior 0.25] [--known-altitude] [--out bench_out]``; the plot goes
+to ``OUT/inversion_time_vs_error.png`` and a small copy to ``docs/inversion_time_vs_error.png``.
 """
 
 from __future__ import annotations
@@ -143,7 +146,9 @@ def timed(image: np.ndarray, **kwargs) -> tuple[Inversion, float]:
     return inv, time.perf_counter() - start
 
 
-def scenes_table(renderer, names: list[str], max_iter: int) -> list[tuple[str, str, dict, float]]:
+def scenes_table(
+    renderer, names: list[str], max_iter: int, **options
+) -> list[tuple[str, str, dict, float]]:
     print(
         f"{'seabed':8s} {'mode':10s} {'Z rmse':>8s} {'/scale':>7s} {'lvl-free':>9s} "
         f"{'corr Z':>6s} {'corr R':>6s} {'corr Φ':>6s} {'iterations':>12s} {'s':>6s}"
@@ -153,7 +158,7 @@ def scenes_table(renderer, names: list[str], max_iter: int) -> list[tuple[str, s
         field, refl, image = render(renderer, name)
         for mode in ("free", "calibrated"):
             beam = true_profile() if mode == "calibrated" else None
-            inv, seconds = timed(image, max_iter=max_iter, beam=beam)
+            inv, seconds = timed(image, max_iter=max_iter, beam=beam, **options)
             s = score(name, field, refl, inv)
             rows.append((name, mode, s, seconds))
             print(
@@ -238,9 +243,20 @@ def main() -> None:
     ap.add_argument("--tols", default="0.1,0.01,0.001,0.0001", help="tol values of the sweep")
     ap.add_argument("--out", default=str(ROOT / "bench_out"), help="plot directory")
     ap.add_argument("--no-docs", action="store_true", help="do not update docs/")
+    ap.add_argument(
+        "--flat-prior", type=float, default=0.0, help="invert(flat_prior=...) of table 1"
+    )
+    ap.add_argument(
+        "--known-altitude",
+        action="store_true",
+        help="table 1 passes the true altitude instead of the first return",
+    )
     args = ap.parse_args()
+    options: dict = {"flat_prior": args.flat_prior}
+    if args.known_altitude:
+        options["altitude"] = ALT
     with RasterRenderer() as renderer:
-        rows = scenes_table(renderer, args.seabeds.split(","), args.max_iter)
+        rows = scenes_table(renderer, args.seabeds.split(","), args.max_iter, **options)
         tols = [float(t) for t in args.tols.split(",") if t]
         points = sweep(renderer, [int(n) for n in args.sweep.split(",") if n], tols)
     if points and any(r[0] != "flat" for r in rows):
