@@ -271,13 +271,17 @@ def invert(
         Weight of a prior that the seabed is flat at the altitude on scales above
         ``FLAT_PRIOR_SCALE`` × the altitude (2 m at 10 m): ``Σ (G (Z − Z_flat))²``, ``G`` a
         Gaussian low-pass, a deviation of one range bin costing ``flat_prior`` times the mean
-        squared data of a ground cell. 0 (default) leaves it out. The level, the tilt and the
-        bending of Z across the swath barely change the image (R and Φ absorb them), so
-        without it they drift with every mismatch between model and image; with it they stay
-        at the altitude's. Use it over broadly flat seabeds with small relief (ripples,
-        roughness) and a trusted altitude (``altitude``); it flattens relief broader than the
-        low-pass (a mound of 1.5 m σ, a trench), and on ripples with the first-return
-        altitude it keeps that altitude's bias. See ``tools/bench_inversion.py``.
+        squared data of a ground cell. 0 (default) leaves it out. Without layover the model
+        image is ``I(ρ) = −Φ R ρ dγ/dρ``, ``γ`` the depression angle of the seabed point at
+        range ``ρ``, so Z follows from integrating outward from nadir, and a relative error
+        ε in Φ R bends it by ``x (π/2 − γ) ε`` (18 cm at 17 m ground range and 10 m altitude
+        for ε = 1 %). R's scale and slow variations and Φ's shape absorb such a bending, so
+        the image hardly fixes it and the fit drifts along it with every mismatch between
+        model and image; the prior holds it at the altitude's flat seabed. Use it over
+        broadly flat seabeds with small relief (ripples, roughness) and a trusted altitude
+        (``altitude``); it flattens relief broader than the low-pass (a mound of 1.5 m σ, a
+        trench), and on ripples with the first-return altitude it keeps that altitude's
+        bias. See ``tools/bench_inversion.py``.
     progress : bool
         Show a progress bar per level.
 
