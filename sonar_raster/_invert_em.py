@@ -77,11 +77,13 @@ class Problem:
         return ndimage.gaussian_filter(values, self.flat_sigma, mode="constant")
 
     def flat_diagonal(self) -> float:
-        """``Σ_k G_kj²`` of an inner cell: the diagonal of ``GᵀG``."""
-        size = [int(8 * s) + 3 for s in self.flat_sigma]
-        delta = np.zeros(size)
-        delta[size[0] // 2, size[1] // 2] = 1.0
-        return float(np.sum(self.low_pass(delta) ** 2))
+        """``Σ_k G_kj²`` of an inner cell: the diagonal of ``GᵀG`` (G is separable)."""
+        out = 1.0
+        for sigma in self.flat_sigma:
+            delta = np.zeros(2 * int(4 * sigma + 0.5) + 3)
+            delta[delta.size // 2] = 1.0
+            out *= float(np.sum(ndimage.gaussian_filter1d(delta, sigma, mode="constant") ** 2))
+        return out
 
     def cells(self, r: np.ndarray, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Per-cell R and Φ from the parameters (flat R, Φ profile)."""

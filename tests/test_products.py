@@ -58,9 +58,11 @@ def flat_inversion(flat_image):
 
 
 def _lit(inv) -> np.ndarray:
-    """Cells between 20° and 60° depression: well inside the beam, away from nadir."""
+    """Cells between 20° and 60° depression (well inside the beam, away from nadir) that have
+    an estimate (the last cells before the end of the data have none)."""
     dep = np.arctan2(ALT, inv.x)
-    return (dep > math.radians(20)) & (dep < math.radians(60))
+    known = np.all(np.isfinite(inv.elevation), axis=0)
+    return (dep > math.radians(20)) & (dep < math.radians(60)) & known
 
 
 def test_reprojected_flat_seabed_is_the_flat_lambertian_profile(flat_image, flat_inversion):

@@ -422,4 +422,6 @@ def _wreck_stands_above_seabed(directory: Path) -> None:
         on.append(z[i][(x >= lo) & (x <= hi)])
         off.append(z[i][x >= ground(found.end[i], alt[i]) + 2.0])
     on, off = np.concatenate(on), np.concatenate(off)
+    on, off = on[np.isfinite(on)], off[np.isfinite(off)]  # cells with an estimate
+    assert on.size > 20 and off.size > 100
     assert np.percentile(on, 90) > np.percentile(off, 99)
