@@ -382,7 +382,8 @@ class RasterRenderer:
         segments once for the whole track, then cut at block edges, so the blocks put together
         equal :meth:`render` of the whole track to float32 rounding. Each draw draws only the
         triangles near its block's swath (a tile index over the scene), and a draw with no
-        triangle near it is skipped.
+        triangle near it is skipped. Rendering another scene with this renderer between two
+        blocks is allowed: the next block uploads its scene again.
 
         Parameters
         ----------
@@ -412,6 +413,9 @@ class RasterRenderer:
             last = min(trajectory.n_pings, first + int(chunk_pings))
             draws = [d for d in (_clip(d, first, last) for d in plan) if d is not None]
             with self.ctx:
+                # A render of another scene between two blocks replaced the uploaded one:
+                # upload this generator's scene again (a no-op when it is still there).
+                self._upload(scene, origin, max_edge)
                 image = self._render_block(
                     scene, sonar, draws, origin, (first, last), progress, labels
                 )

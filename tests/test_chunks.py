@@ -62,6 +62,24 @@ def test_blocks_put_together_equal_the_whole_track(gl, chunk):
         assert agree > 0.999, f"{side}: labels agree on {agree:.4%} of cells"
 
 
+def test_a_render_between_two_blocks_does_not_change_the_generator_scene(gl):
+    """Blocks of a survey interleaved with renders of another scene on the same renderer still
+    show the survey's scene (the other render replaced the uploaded geometry)."""
+    seabed = rect_seabed(-60.0, 60.0, -60.0, 60.0)
+    survey = build_scene([seabed, box_from_bounds([[12.0, -2.0, 0.0], [13.0, 2.0, 1.5]])])
+    other = build_scene([seabed, box_from_bounds([[6.0, -9.0, 0.0], [8.0, 9.0, 3.0]])])
+    sonar = Sonar(max_range=25.0, range_bin=0.1)
+    traj = Trajectory.straight((0.0, -6.0, 7.0), 0.0, 0.3, 40)
+    whole = gl.render(survey, sonar, traj)
+    blocks = []
+    for block in gl.render_chunks(survey, sonar, traj, 10):
+        blocks.append(block)
+        gl.render(other, sonar, traj.subset(slice(0, 5)))
+    joined = np.concatenate([b.sides["starboard"] for b in blocks])
+    tol = 1e-5 * float(whole.sides["starboard"].max())
+    assert np.abs(joined - whole.sides["starboard"]).max() <= tol
+
+
 def test_triangles_drawn_per_block_stay_flat_as_the_seabed_grows(gl):
     """The tile index culls to each block's swath: work per block does not follow scene size."""
     sonar = Sonar(max_range=25.0, range_bin=0.1, sides=("starboard",))
