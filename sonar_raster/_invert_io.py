@@ -79,6 +79,7 @@ def summary(inv: Inversion, side: str, range_bin: float, extra: dict | None = No
         "iterations": inv.iterations,
         "iterations_per_level": [len(level) - 1 for level in inv.energies],
         "levels": [_level_doc(run) for run in inv.runs],
+        "settings": dict(inv.settings),
         "elevation": "metres relative to the transducer, negative below; NaN = no estimate",
     }
     doc.update(extra or {})

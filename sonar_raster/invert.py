@@ -136,6 +136,10 @@ class Inversion:
         Per level, coarsest first: ``factor``, ``pings``, ``cells``, ``kept`` (the start kept)
         and ``starts``, one dict per start with ``start``, ``iterations``, ``energy`` (final E)
         and ``stopped`` (``"tol"``, ``"stalled"`` or ``"max_iter"``).
+    settings : dict
+        The options the inversion ran with: ``levels``, ``max_iter``, ``tol``,
+        ``flat_prior``, ``calibrated`` (Φ fixed from a profile) and ``altitude`` (``"given"`` or
+        ``"first return"``).
     """
 
     x: np.ndarray
@@ -150,6 +154,7 @@ class Inversion:
     even: np.ndarray | None = None
     ping_spacing: float = math.nan
     runs: list[dict] = field(default_factory=list)
+    settings: dict = field(default_factory=dict)
 
     @property
     def iterations(self) -> int:
@@ -322,7 +327,15 @@ def invert(
         runs.append(run)
         coarse = level
     inv = _rescaled(_result(chain[-1], state, ground, valid, energies), scale)
-    return _with_products(inv, original, range_bin, geom.dy, runs)
+    settings = {
+        "levels": len(chain),
+        "max_iter": max_iter,
+        "tol": tol,
+        "flat_prior": flat_prior,
+        "calibrated": beam is not None,
+        "altitude": "first return" if altitude is None else "given",
+    }
+    return _with_products(inv, original, range_bin, geom.dy, runs, settings)
 
 
 def _power_of_two_scale(image: np.ndarray) -> float:
@@ -345,7 +358,7 @@ def _rescaled(inv: Inversion, scale: float) -> Inversion:
 
 
 def _with_products(
-    inv: Inversion, image: np.ndarray, range_bin: float, dy: float, runs
+    inv: Inversion, image: np.ndarray, range_bin: float, dy: float, runs, settings: dict
 ) -> Inversion:
     from dataclasses import replace
 
@@ -353,7 +366,9 @@ def _with_products(
 
     ground = reproject(image, range_bin, inv.x, inv.elevation)
     even = even_illumination(ground, inv.beam, inv.x, inv.elevation)
-    return replace(inv, reprojected=ground, even=even, ping_spacing=dy, runs=runs)
+    return replace(
+        inv, reprojected=ground, even=even, ping_spacing=dy, runs=runs, settings=settings
+    )
 
 
 def _data_scale(level: pyramid.Level, r: np.ndarray) -> float:

@@ -374,9 +374,12 @@ def test_cli_invert_renderer_exr(gl_renderer, ripples, tmp_path, capsys):
     }
     quick = tmp_path / "quick"
     argv = ["invert", str(tmp_path / "in.exr"), "-o", str(quick), "--quiet", "--max-iter", "2"]
-    assert main([*argv, "--ping-spacing", "0.1"]) == 0
+    assert main([*argv, "--ping-spacing", "0.1", "--flat-prior", "0.5", "--altitude", "10"]) == 0
     short = json.loads((quick / "inversion.json").read_text())
     assert all(len(level) <= 3 for level in short["energy_per_iteration"])
+    assert doc["settings"]["flat_prior"] == 0 and doc["settings"]["altitude"] == "first return"
+    assert short["settings"]["flat_prior"] == 0.5 and short["settings"]["altitude"] == "given"
+    assert short["settings"]["max_iter"] == 2 and not short["settings"]["calibrated"]
 
 
 @pytest.mark.parametrize(
