@@ -319,12 +319,20 @@ def _stability_cases(base: np.ndarray) -> dict[str, tuple[np.ndarray, float | No
     }
 
 
-def test_stability_on_hostile_images(ripple_image):
+@pytest.mark.parametrize("flat_prior", [0.0, 1.0])
+def test_stability_on_hostile_images(ripple_image, flat_prior):
     # errstate restores numpy's error settings afterwards (a global seterr leaked into later
     # tests and turned harmless underflows into errors there).
     with np.errstate(all="raise"):
         for name, (img, alt) in _stability_cases(ripple_image).items():
-            inv = invert(img, SONAR.range_bin, altitude=alt, ping_spacing=SPACING, max_iter=20)
+            inv = invert(
+                img,
+                SONAR.range_bin,
+                altitude=alt,
+                ping_spacing=SPACING,
+                max_iter=20,
+                flat_prior=flat_prior,
+            )
             ok = np.isfinite(inv.elevation)
             assert ok.any(), name
             for arr in (inv.elevation, inv.reflectivity, inv.beam):
