@@ -20,8 +20,9 @@ first bottom return), the correlation of Z, of R (where R varies) and of the bea
 Table 2, run time against error on the ripples (free): levels 1, 2, 3 × a fixed number of
 iterations per level and start, then 3 levels with the stopping threshold ``tol`` (default 1e-2).
 
-Table 1 can also run with the flat-seabed prior (``--flat-prior W``) and the true altitude
-(``--known-altitude``) instead of the first return.
+Table 1 can also run with the flat-seabed prior (``--flat-prior W``), the true altitude
+(``--known-altitude``) instead of the first return, and on images with L-look speckle
+(``--speckle L``: each cell times an independent Gamma(L, 1/L) draw).
 
 Usage: ``python tools/bench_inversion.py [--max-iter 100] [--seabeds flat,ripples,...]
 [--sweep 10,30,100] [--flat-prior 0.25] [--known-altitude] [--out bench_out]``; the plot goes
@@ -33,6 +34,7 @@ from __future__ import annotations
 import argparse
 import math
 import time
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -146,8 +148,17 @@ def timed(image: np.ndarray, **kwargs) -> tuple[Inversion, float]:
     return inv, time.perf_counter() - start
 
 
+def speckled(image: np.ndarray, looks: float, name: str) -> np.ndarray:
+    """``image`` times fully developed L-look speckle: Gamma(L, 1/L), unit mean, one
+    independent draw per cell, seeded by the seabed's name (0 looks: the image itself)."""
+    if looks <= 0:
+        return image
+    rng = np.random.default_rng(zlib.crc32(name.encode()))
+    return image * rng.gamma(looks, 1.0 / looks, image.shape)
+
+
 def scenes_table(
-    renderer, names: list[str], max_iter: int, **options
+    renderer, names: list[str], max_iter: int, looks: float = 0.0, **options
 ) -> list[tuple[str, str, dict, float]]:
     print(
         f"{'seabed':8s} {'mode':10s} {'Z rmse':>8s} {'/scale':>7s} {'lvl-free':>9s} "
@@ -156,6 +167,7 @@ def scenes_table(
     rows = []
     for name in names:
         field, refl, image = render(renderer, name)
+        image = speckled(image, looks, name)
         for mode in ("free", "calibrated"):
             beam = true_profile() if mode == "calibrated" else None
             inv, seconds = timed(image, max_iter=max_iter, beam=beam, **options)
@@ -251,8 +263,15 @@ def main() -> None:
         action="store_true",
         help="table 1 passes the true altitude instead of the first return",
     )
+    ap.add_argument(
+        "--speckle",
+        type=float,
+        default=0.0,
+        metavar="LOOKS",
+        help="table 1 on images times L-look speckle (Gamma(L, 1/L) per cell; 0: none)",
+    )
     args = ap.parse_args()
-    options: dict = {"flat_prior": args.flat_prior}
+    options: dict = {"flat_prior": args.flat_prior, "looks": args.speckle}
     if args.known_altitude:
         options["altitude"] = ALT
     with RasterRenderer() as renderer:
