@@ -364,6 +364,27 @@ def test_bad_input_is_one_error(image):
         invert(image, 0.05, altitude=1.0)
 
 
+def test_ground_cells_longer_than_a_bin_alias_and_are_refused():
+    # Flat seabed, Φ = R = 1: the exact slant density is h (acosh(r_hi/h) − acosh(r_lo/h)) / Δr.
+    # The model puts each cell's return at one range (split between two bins): fine for cells
+    # no longer than a bin, a comb of bright and dark bins for longer ones.
+    h, rb, bins = 10.0, 0.05, 400
+    edges = np.arange(bins + 1) * rb
+    exact = h * np.diff(np.arccosh(np.maximum(edges, h) / h)) / rb
+    far = slice(240, 380)  # away from nadir and the end of the ground axis
+
+    def residual(dx: float) -> float:
+        x = (np.arange(int(19.5 / dx)) + 0.5) * dx
+        geom = Geometry(x, dx, 1.0, rb, bins)
+        model = forward(np.ones((1, x.size)), np.ones((1, x.size)), np.full((1, x.size), -h), geom)
+        return float(np.linalg.norm(model[0, far] - exact[far]) / np.linalg.norm(exact[far]))
+
+    assert residual(rb) < 0.1
+    assert residual(2 * rb) > 0.2
+    with pytest.raises(SonarRasterError, match="ground bin"):
+        invert(np.ones((4, 100)), rb, altitude=1.0, ground_bin=2 * rb)
+
+
 def test_cli_invert_renderer_exr(gl_renderer, ripples, tmp_path, capsys):
     import json
 
