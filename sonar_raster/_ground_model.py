@@ -19,7 +19,12 @@ upward normal, the seabed patch ``dA = s dx dy`` (``s = |n|``) seen from the son
 ``q = (x Zx − Z) / ρ`` (Zy drops out). Ground cell j returns the energy
 ``e_j = Φ_j R_j max(0, q_j) dx`` at its own slant range ``ρ_j``; it is split between the two
 nearest slant-bin centres by linear weights, ``u = ρ / range_bin − 1/2``, ``k0 = ⌊u⌋``,
-``t = u − k0``, and the model density is ``Î_k = Σ_j e_j w_jk / range_bin``. This carries
+``t = u − k0``, and the model density is ``Î_k = Σ_j e_j w_jk / range_bin``. With
+``Geometry.subsamples = n > 1`` the energy is shared equally by n points of the cell's tangent
+plane, at ``x + o dx`` and ``Z + o dx Zx`` for ``o = (s + 1/2)/n − 1/2``, each split the same
+way: the cell's return then covers its range extent instead of one range (against the exact
+density of a flat seabed, 5 cm cells and bins: 5.6 % off at n = 1, 1.3 % at 2, 0.5 % at 3).
+The points' ranges move with the cell's slope too, which the gradients carry. This carries
 the foreshortening ``dr/dx = (x + Z Zx) / ρ`` and the misregistration of relief in slant
 range, and sums the cells that fold onto one range (layover) as the renderer does.
 """
@@ -80,6 +85,9 @@ class Geometry:
         Slant-range bin size, metres.
     bins : int
         Number of slant-range bins.
+    subsamples : int
+        Points each cell's return is spread over along its tangent plane (1: the cell centre
+        only); see the module notes.
     """
 
     x: np.ndarray
@@ -87,6 +95,7 @@ class Geometry:
     dy: float
     range_bin: float
     bins: int
+    subsamples: int = 1
 
 
 @dataclass(frozen=True)
@@ -96,20 +105,37 @@ class _Cells:
     q: np.ndarray  # max(0, x Zx − Z) / ρ
     lit: np.ndarray  # x Zx − Z > 0
     rho: np.ndarray
+    subs: list[_Sub]  # the points the cell's return is spread over
+
+
+@dataclass(frozen=True)
+class _Sub:
+    """One point of every cell's tangent plane, all shape (pings, ground cells)."""
+
     k0: np.ndarray  # lower slant bin (may be −1 or >= bins)
     t: np.ndarray  # weight of bin k0 + 1
+    zr: np.ndarray  # Z_s / ρ_s = ∂ρ_s/∂Z
+    offset: float  # o dx: ∂ρ_s/∂Zx = zr · offset
 
 
 def _cells(z: np.ndarray, geom: Geometry) -> _Cells:
     x = geom.x[None, :]
     rho = np.sqrt(x * x + z * z)
-    num = x * slope(z, 1, geom.dx) - z
-    u = rho / geom.range_bin - 0.5
-    k0 = np.floor(u)
-    return _Cells(np.maximum(num, 0.0) / rho, num > 0.0, rho, k0.astype(np.int64), u - k0)
+    zx = slope(z, 1, geom.dx)
+    num = x * zx - z
+    n = geom.subsamples
+    subs = []
+    for s in range(n):
+        offset = ((s + 0.5) / n - 0.5) * geom.dx
+        zs = z + offset * zx
+        rs = np.sqrt((x + offset) ** 2 + zs * zs)
+        u = rs / geom.range_bin - 0.5
+        k0 = np.floor(u)
+        subs.append(_Sub(k0.astype(np.int64), u - k0, zs / rs, offset))
+    return _Cells(np.maximum(num, 0.0) / rho, num > 0.0, rho, subs)
 
 
-def _splat(values: np.ndarray, c: _Cells, bins: int) -> np.ndarray:
+def _splat(values: np.ndarray, c: _Sub, bins: int) -> np.ndarray:
     """``Σ_j values_j w_jk``, shape (pings, bins); bins outside ``[0, bins)`` are dropped."""
     pings, width = values.shape[0], bins + 2
     rows = np.broadcast_to(np.arange(pings)[:, None] * width, values.shape)
@@ -121,7 +147,7 @@ def _splat(values: np.ndarray, c: _Cells, bins: int) -> np.ndarray:
     return out[:, 1:-1]
 
 
-def _gather(field: np.ndarray, c: _Cells) -> tuple[np.ndarray, np.ndarray]:
+def _gather(field: np.ndarray, c: _Sub) -> tuple[np.ndarray, np.ndarray]:
     """``field`` (pings, bins) at each cell's bins k0 and k0 + 1 (0 outside)."""
     pad = np.pad(field, ((0, 0), (1, 1)))
     rows = np.arange(field.shape[0])[:, None]
@@ -161,7 +187,15 @@ def roughness(r: np.ndarray, edge: float = 0.0) -> tuple[float, np.ndarray, np.n
 def forward(r: np.ndarray, phi: np.ndarray, z: np.ndarray, geom: Geometry) -> np.ndarray:
     """Model intensity per metre of slant range, shape (pings, bins)."""
     c = _cells(z, geom)
-    return _splat(phi * r * c.q * geom.dx, c, geom.bins) / geom.range_bin
+    return _splat_all(phi * r * c.q * geom.dx, c, geom.bins) / geom.range_bin
+
+
+def _splat_all(e: np.ndarray, c: _Cells, bins: int) -> np.ndarray:
+    """Each cell's energy ``e`` shared equally by its points, splatted, (pings, bins)."""
+    out = np.zeros((e.shape[0], bins))
+    for sub in c.subs:
+        out += _splat(e / len(c.subs), sub, bins)
+    return out
 
 
 @dataclass(frozen=True)
@@ -213,23 +247,35 @@ def evaluate(
     and ``b' = (G[k0+1] − G[k0]) / range_bin``: ``∂E/∂e = b``, ``∂E/∂ρ = e b'``, and
     ``∂E/∂Z`` collects ``b Φ R dx ∂q/∂Z + e b' Z/ρ`` and, through the transposed stencil,
     ``b Φ R dx x/ρ`` of the neighbours whose slope the cell enters. Where ``q = 0`` (shadow)
-    its derivative is taken as 0. The diagonals are those of JᵀJ for each cell alone.
+    its derivative is taken as 0. The diagonals are those of JᵀJ for each cell alone. With
+    several points per cell (``geom.subsamples``) ``b`` is the mean over the points and each
+    point s adds ``(e/n) b'_s Z_s/ρ_s`` directly and ``(e/n) b'_s (Z_s/ρ_s) o_s dx`` through
+    the transposed stencil (its range moves with the slope); the diagonals are then
+    approximate (they only scale the steps).
     """
     c = _cells(z, geom)
-    rb, dx = geom.range_bin, geom.dx
+    rb, dx, n = geom.range_bin, geom.dx, len(c.subs)
     e = phi * r * c.q * dx
-    res = _splat(e, c, geom.bins) / rb - image
-    g0, g1 = _gather(2.0 * weight * res / rb, c)
-    b, db = (1.0 - c.t) * g0 + c.t * g1, (g1 - g0) / rb
-    w0, w1 = _gather(np.broadcast_to(2.0 * weight / rb**2, res.shape), c)
-    a = (1.0 - c.t) ** 2 * w0 + c.t**2 * w1
+    res = _splat_all(e, c, geom.bins) / rb - image
+    grad = 2.0 * weight * res / rb
+    curv = np.broadcast_to(2.0 * weight / rb**2, res.shape)
+    b, a = np.zeros_like(e), np.zeros_like(e)
+    shift_z, shift_zx, shift_diag = np.zeros_like(e), np.zeros_like(e), np.zeros_like(e)
+    for sub in c.subs:
+        g0, g1 = _gather(grad, sub)
+        w0, w1 = _gather(curv, sub)
+        b += ((1.0 - sub.t) * g0 + sub.t * g1) / n
+        a += ((1.0 - sub.t) ** 2 * w0 + sub.t**2 * w1) / n
+        moved = e / n * (g1 - g0) / rb * sub.zr  # ∂E/∂ρ_s · ∂ρ_s/∂Z
+        shift_z += moved
+        shift_zx += moved * sub.offset
+        shift_diag += (w0 + w1) * (e / n * sub.zr / rb) ** 2
     amp = phi * r * dx * c.lit
     x = geom.x[None, :]
     dq_dz = -1.0 / c.rho - c.q * z / c.rho**2
     dq_dzx = x / c.rho
-    shift = e * z / c.rho
-    gz = b * amp * dq_dz + db * shift + slope_adjoint(b * amp * dq_dzx, 1, dx)
-    dz = a * (amp * dq_dz) ** 2 + (w0 + w1) * (shift / rb) ** 2
+    gz = b * amp * dq_dz + shift_z + slope_adjoint(b * amp * dq_dzx + shift_zx, 1, dx)
+    dz = a * (amp * dq_dz) ** 2 + shift_diag
     dz += slope_adjoint(a * (amp * dq_dzx) ** 2, 1, dx, power=2)
     rough, grad_rough, diag_rough = roughness(r, edge)
     return Evaluation(
@@ -262,22 +308,24 @@ def jacobian_z(
     Exact, with the same terms as :func:`evaluate`.
     """
     c = _cells(z, geom)
-    rb, dx = geom.range_bin, geom.dx
+    rb, dx, n = geom.range_bin, geom.dx, len(c.subs)
     pings, cells = z.shape
-    amp = phi * r * dx * c.lit / rb
+    amp = phi * r * dx * c.lit / rb / n
     x = geom.x[None, :]
     direct_q = amp * (-1.0 / c.rho - c.q * z / c.rho**2)
-    shift = phi * r * c.q * dx * z / c.rho / rb**2
     via_slope = amp * x / c.rho
     width = geom.bins
     rows_base = np.arange(pings)[:, None] * width
     col = np.arange(pings * cells).reshape(pings, cells)
     parts_d, parts_s = [], []
-    for k, wgt, dw in ((c.k0, 1.0 - c.t, -1.0), (c.k0 + 1, c.t, 1.0)):
-        inside = (k >= 0) & (k < width)
-        row = (rows_base + np.clip(k, 0, width - 1))[inside]
-        parts_d.append((row, col[inside], (direct_q * wgt + shift * dw)[inside]))
-        parts_s.append((row, col[inside], (via_slope * wgt)[inside]))
+    for sub in c.subs:
+        shift = phi * r * c.q * dx / n * sub.zr / rb**2
+        for k, wgt, dw in ((sub.k0, 1.0 - sub.t, -1.0), (sub.k0 + 1, sub.t, 1.0)):
+            inside = (k >= 0) & (k < width)
+            row = (rows_base + np.clip(k, 0, width - 1))[inside]
+            parts_d.append((row, col[inside], (direct_q * wgt + shift * dw)[inside]))
+            slope_part = via_slope * wgt + shift * sub.offset * dw
+            parts_s.append((row, col[inside], slope_part[inside]))
     shape = (pings * width, pings * cells)
 
     def build(parts):

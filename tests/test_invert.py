@@ -83,11 +83,15 @@ def ripple_image(gl_renderer, ripples):
     return _render(gl_renderer, ripples)
 
 
-@pytest.mark.parametrize(("smooth", "edge"), [(0.0, 0.0), (3.0, 0.0), (3.0, 0.05)])
-def test_gradient_matches_central_differences(smooth, edge):
+@pytest.mark.parametrize(
+    ("smooth", "edge", "subsamples"), [(0.0, 0.0, 1), (3.0, 0.0, 1), (3.0, 0.05, 1), (0.0, 0.0, 3)]
+)
+def test_gradient_matches_central_differences(smooth, edge, subsamples):
+    # subsamples > 1: each cell's return spread over points of its tangent plane, whose ranges
+    # move with the cell's slope too.
     rng = np.random.default_rng(3)
     shape = (5, 7)
-    geom = Geometry((np.arange(7) + 0.5) * 0.5 + 1.0, 0.5, 0.4, 0.2, 60)
+    geom = Geometry((np.arange(7) + 0.5) * 0.5 + 1.0, 0.5, 0.4, 0.2, 60, subsamples)
     args = {
         "r": rng.uniform(0.3, 1.0, shape),
         "phi": rng.uniform(0.5, 2.0, shape),
@@ -373,14 +377,16 @@ def test_ground_cells_longer_than_a_bin_alias_and_are_refused():
     exact = h * np.diff(np.arccosh(np.maximum(edges, h) / h)) / rb
     far = slice(240, 380)  # away from nadir and the end of the ground axis
 
-    def residual(dx: float) -> float:
+    def residual(dx: float, subsamples: int = 1) -> float:
         x = (np.arange(int(19.5 / dx)) + 0.5) * dx
-        geom = Geometry(x, dx, 1.0, rb, bins)
+        geom = Geometry(x, dx, 1.0, rb, bins, subsamples)
         model = forward(np.ones((1, x.size)), np.ones((1, x.size)), np.full((1, x.size), -h), geom)
         return float(np.linalg.norm(model[0, far] - exact[far]) / np.linalg.norm(exact[far]))
 
     assert residual(rb) < 0.1
     assert residual(2 * rb) > 0.2
+    assert residual(2 * rb, subsamples=4) < 0.1  # spread over the cell's range extent
+    assert residual(rb, subsamples=2) < 0.5 * residual(rb)
     with pytest.raises(SonarRasterError, match="ground bin"):
         invert(np.ones((4, 100)), rb, altitude=1.0, ground_bin=2 * rb)
 

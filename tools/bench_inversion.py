@@ -270,7 +270,17 @@ def main() -> None:
         metavar="LOOKS",
         help="table 1 on images times L-look speckle (Gamma(L, 1/L) per cell; 0: none)",
     )
+    ap.add_argument(
+        "--subsamples",
+        type=int,
+        default=None,
+        help="set sonar_raster.invert.SUBSAMPLES (points per cell's return) for every run",
+    )
     args = ap.parse_args()
+    if args.subsamples is not None:
+        import sonar_raster.invert
+
+        sonar_raster.invert.SUBSAMPLES = args.subsamples
     options: dict = {"flat_prior": args.flat_prior, "looks": args.speckle}
     if args.known_altitude:
         options["altitude"] = ALT
