@@ -359,6 +359,23 @@ def test_stability_at_grazing_and_near_nadir(altitude):
     _monotone(inv)
 
 
+def test_no_estimate_where_the_data_end():
+    # The last cells' returns and their slope neighbours' fall partly beyond the image: they
+    # get NaN (EDGE_BINS = 6 bins of slant range), the cells before them an estimate.
+    from sonar_raster.invert import EDGE_BINS
+
+    h, rb, bins = 5.0, 0.05, 300
+    x = (np.arange(400) + 0.5) * rb
+    slant = ground_to_slant(np.ones((4, x.size)), x, np.full(4, h), rb, bins)
+    inv = invert(slant, rb, altitude=h, max_iter=5)
+    known = np.all(np.isfinite(inv.elevation), axis=0)
+    last = np.flatnonzero(known)[-1]
+    assert known[: last + 1].all() and not known[last + 1 :].any()
+    image_end = bins * rb
+    assert np.hypot(inv.x[last], h) <= image_end - EDGE_BINS * rb
+    assert np.hypot(inv.x[last], h) > image_end - (EDGE_BINS + 4) * rb
+
+
 @pytest.mark.parametrize(
     "image",
     [np.zeros((1, 10)), np.full((4, 10), np.nan), -np.ones((4, 10)), np.zeros((4, 10, 2))],
