@@ -322,8 +322,8 @@ def invert_xtf_command(args: argparse.Namespace) -> int:
     from .io import _commit
 
     out = Path(args.output)
-    options = {"max_iter": args.max_iter}
-    for name in ("levels", "tol", "flat_prior"):
+    options = {"max_iter": args.max_iter, "looks": getattr(args, "looks", "auto")}
+    for name in ("levels", "tol", "flat_prior", "relief_std", "slope_std"):
         if getattr(args, name, None) is not None:
             options[name] = getattr(args, name)
     if getattr(args, "beam", None):

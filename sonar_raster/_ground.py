@@ -41,9 +41,11 @@ FIRST_RETURN_SIGMAS = 8.0
 ALTITUDE_MEDIAN_PINGS = 9
 
 
-def first_return(slant: np.ndarray, range_bin: float) -> np.ndarray:
+def first_return(slant: np.ndarray, range_bin: float, pings: int = 1) -> np.ndarray:
     """Altitude of the sonar over the seabed per ping from the first bottom return.
 
+    With ``pings > 1`` each ping is first replaced by the mean of its ``pings`` neighbours
+    without the brightest of them per bin (see :func:`_along_track_mean`), for speckled images.
     Each ping is smoothed (Gaussian, 0.75 bins) and the return detected where it first rises
     above ``floor + max(0.05 (p99 − floor), 8 σ)``, ``floor`` and ``σ`` the median and robust
     deviation (1.4826 MAD) of the image's nearest 2 % of bins (the water column) and ``p99`` the
@@ -72,7 +74,8 @@ def first_return(slant: np.ndarray, range_bin: float) -> np.ndarray:
     SonarRasterError
         If no ping shows a bottom return.
     """
-    smooth = ndimage.gaussian_filter1d(np.asarray(slant, dtype=np.float64), 0.75, axis=1)
+    raw = _along_track_mean(np.asarray(slant, dtype=np.float64), pings)
+    smooth = ndimage.gaussian_filter1d(raw, 0.75, axis=1)
     water = smooth[:, : max(1, smooth.shape[1] // 50)]
     floor = float(np.median(water))
     sigma = 1.4826 * float(np.median(np.abs(water - floor)))
@@ -84,10 +87,24 @@ def first_return(slant: np.ndarray, range_bin: float) -> np.ndarray:
     if not found.any():
         raise SonarRasterError("no bottom return found in any ping; give --altitude")
     k = np.argmax(above, axis=1)
-    alt = (_half_rise(np.asarray(slant, dtype=np.float64), k, floor, threshold) + 0.5) * range_bin
+    alt = (_half_rise(raw, k, floor, threshold) + 0.5) * range_bin
     alt = np.where(found, np.maximum(alt, 0.5 * range_bin), np.nan)
     alt = np.where(found, alt, np.nanmedian(alt))
     return ndimage.median_filter(alt, size=ALTITUDE_MEDIAN_PINGS, mode="nearest")
+
+
+def _along_track_mean(slant: np.ndarray, pings: int) -> np.ndarray:
+    """Mean of each bin over ``pings`` neighbouring pings without the brightest one.
+
+    Averaging independent speckle looks steadies the leading edge; leaving out the brightest
+    value keeps a single bright ping (a fish in the water column) from spreading to its
+    neighbours. Edge pings repeat at the ends; ``pings < 2`` returns ``slant``.
+    """
+    if pings < 2 or slant.shape[0] < 2:
+        return slant
+    total = pings * ndimage.uniform_filter1d(slant, pings, axis=0, mode="nearest")
+    brightest = ndimage.maximum_filter1d(slant, pings, axis=0, mode="nearest")
+    return np.maximum(total - brightest, 0.0) / (pings - 1)
 
 
 def _half_rise(raw: np.ndarray, k: np.ndarray, floor: float, threshold: np.ndarray) -> np.ndarray:

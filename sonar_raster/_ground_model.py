@@ -346,12 +346,14 @@ def gauss_newton_z(
     geom: Geometry,
     damping: float,
     prior: float | np.ndarray = 0.0,
+    prior_matrix: sparse.spmatrix | None = None,
 ) -> np.ndarray:
-    """Levenberg-Marquardt step of Z: ``−(2 JᵀJ + prior I + μ I)⁻¹ ∂E/∂Z``, shape of ``z``.
+    """Levenberg-Marquardt step of Z: ``−(2 JᵀJ + P + μ I)⁻¹ ∂E/∂Z``, shape of ``z``.
 
     ``μ = damping × mean diagonal of 2 JᵀJ``; with ``μ > 0`` the step is a descent direction.
-    ``prior`` (a number or an array shaped like ``z``) is added to the diagonal: that of the
-    Hessian of any quadratic prior on Z included in ``grad_z``.
+    ``P`` is the Hessian of the quadratic priors on Z included in ``grad_z``: ``prior`` (a
+    number or an array shaped like ``z``) on the diagonal plus ``prior_matrix`` (sparse,
+    (pings·cells)², positive semi-definite) where a prior couples cells.
     """
     j = jacobian_z(weight, r, phi, z, geom)
     h = 2.0 * (j.T @ j).tocsc()
@@ -359,4 +361,6 @@ def gauss_newton_z(
     mu = damping * float(diag.mean()) if diag.size and diag.mean() > 0 else 1.0
     extra = np.broadcast_to(np.asarray(prior, np.float64), z.shape).ravel() + mu
     h = h + sparse.diags(extra, format="csc")
+    if prior_matrix is not None:
+        h = h + prior_matrix.tocsc()
     return -spsolve(h, grad_z.ravel()).reshape(z.shape)

@@ -17,6 +17,7 @@ import numpy as np
 from scipy import ndimage
 
 from ._ground_model import Geometry, energy, evaluate, gauss_newton_z
+from ._invert_regular import slope_roughness
 
 #: Sufficient-decrease constant of the Armijo test.
 ARMIJO = 1e-4
@@ -55,6 +56,11 @@ class Problem:
     z_ref : ndarray, shape (pings, cells), optional
         The reference surface of the prior (a flat seabed at each ping's altitude); needed
         when ``flat > 0``.
+    relief : float
+        Weight of the relief prior ``Σ (Z − Z_ref)²`` of E (0: none).
+    slopes : float
+        Weight of the slope prior ``Σ (∂Z/∂x)² + (∂Z/∂y)²`` of E (0: none); see
+        :func:`sonar_raster._invert_regular.slope_roughness`.
     """
 
     image: np.ndarray
@@ -68,6 +74,8 @@ class Problem:
     flat: float = 0.0
     flat_sigma: tuple[float, float] = (1.0, 1.0)
     z_ref: np.ndarray | None = None
+    relief: float = 0.0
+    slopes: float = 0.0
 
     def low_pass(self, values: np.ndarray) -> np.ndarray:
         """``G values``: Gaussian of σ ``flat_sigma`` cells, zero outside the grid.
@@ -96,6 +104,10 @@ class Problem:
         data += self.smooth_phi * float(np.sum(np.diff(phi, 2) ** 2))
         if self.flat > 0 and self.z_ref is not None:
             data += self.flat * float(np.sum(self.low_pass(z - self.z_ref) ** 2))
+        if self.relief > 0 and self.z_ref is not None:
+            data += self.relief * float(np.sum((z - self.z_ref) ** 2))
+        if self.slopes > 0:
+            data += self.slopes * slope_roughness(z, self.geom.dx, self.geom.dy)[0]
         return data
 
 
@@ -129,6 +141,15 @@ def _search_direction(
     if prob.flat > 0 and prob.z_ref is not None:
         grads[2] = grads[2] + 2.0 * prob.flat * prob.low_pass(prob.low_pass(z - prob.z_ref))
         prior_z += 2.0 * prob.flat * prob.flat_diagonal()
+    if prob.relief > 0 and prob.z_ref is not None:
+        grads[2] = grads[2] + 2.0 * prob.relief * (z - prob.z_ref)
+        prior_z += 2.0 * prob.relief
+    coupled = None
+    if prob.slopes > 0:
+        _, grad_slopes, across, along = slope_roughness(z, prob.geom.dx, prob.geom.dy)
+        grads[2] = grads[2] + prob.slopes * grad_slopes
+        coupled = prob.slopes * across
+        prior_z = prior_z + prob.slopes * along
     if prob.smooth_phi > 0 and len(phi) > 2:
         d2 = np.diff(phi, 2)
         adj = np.zeros_like(phi)
@@ -139,7 +160,7 @@ def _search_direction(
     diags = [
         np.bincount(prob.tie, ev.diag_r.ravel(), minlength=r.size),
         np.bincount(prob.bins.ravel(), ev.diag_phi.ravel(), minlength=nb) + 12.0 * prob.smooth_phi,
-        ev.diag_z + prior_z,
+        ev.diag_z + prior_z + (0.0 if coupled is None else coupled.diagonal().reshape(z.shape)),
     ]
     dirs = [
         _direction(g, d, s)
@@ -147,7 +168,7 @@ def _search_direction(
     ]
     if steps.z > 0 and z.size:
         dirs[2] = steps.z * gauss_newton_z(
-            grads[2], prob.weight, rc, pc, z, prob.geom, DAMPING, prior_z
+            grads[2], prob.weight, rc, pc, z, prob.geom, DAMPING, prior_z, coupled
         )
     biggest = float(np.max(np.abs(dirs[2]))) if dirs[2].size else 0.0
     if biggest > prob.geom.dx:

@@ -6,6 +6,10 @@ ping's altitude ``h``; bin edges are those of the ground cells at the median alt
 a level track bin b is ground column b. The profile starts from the median (Eq. 21) of the
 image over each bin.
 
+On a speckled image two Gaussian priors on Z join the fit (see :func:`noise_variance`): on the
+relief ``Z − Z_flat`` and on the slopes. Their weights are the image noise variance over the
+assumed variances of relief and slopes, so they fade away as the image gets clean.
+
 Reflectivity in shadow is tied to the nearest lit cell (Euclidean distance transform): the
 limit of the seed's hexadecagonal dilation, which grows lit regions by an almost round disc
 until every shadow cell is reached, and exact where 16 directions are only approximate.
@@ -13,8 +17,10 @@ until every shadow cell is reached, and exact where 16 directions are only appro
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
-from scipy import ndimage
+from scipy import ndimage, sparse
 
 #: A cell is in shadow where its smoothed normalised intensity is below this fraction of
 #: the median of the lit seabed.
@@ -77,3 +83,56 @@ def nearest_lit(shadow: np.ndarray) -> np.ndarray:
         return np.arange(shadow.size)
     _, (iy, ix) = ndimage.distance_transform_edt(shadow, return_indices=True)
     return np.ravel_multi_index((iy, ix), shadow.shape).ravel()
+
+
+def _difference(n: int, step: float) -> sparse.csr_matrix:
+    """Forward differences ``(v[j+1] − v[j]) / step`` of a length-``n`` axis, (n − 1) × n."""
+    return sparse.diags([-np.ones(n - 1), np.ones(n - 1)], [0, 1], (max(n - 1, 0), n)) / step
+
+
+def slope_roughness(
+    z: np.ndarray, dx: float, dy: float
+) -> tuple[float, np.ndarray, sparse.csr_matrix, np.ndarray]:
+    """``Σ (∂Z/∂x)² + Σ (∂Z/∂y)²`` over forward differences, its gradient and its Hessian.
+
+    The prior of a seabed whose slopes have a standard deviation ``s`` is this sum over
+    ``2 s²``. Unlike the image, it ties each ping's Z to its neighbours' (the model image does
+    not depend on ``∂Z/∂y``, so the data fit every ping alone). Returns the value, the gradient
+    (shape of ``z``), and the constant Hessian in two parts: the across-track part, a sparse
+    (pings·cells)² matrix that couples cells of one ping only (a 1-D Laplacian per ping, free
+    ends), and the diagonal of the along-track part (shape of ``z``). Keeping the pings apart
+    keeps the Gauss-Newton matrix block diagonal, one banded block per ping, so its solve
+    stays as cheap as without the prior.
+    """
+    pings, cells = z.shape
+    ax, ay = np.diff(z, axis=1) / dx, np.diff(z, axis=0) / dy
+    value = float(np.sum(ax * ax) + np.sum(ay * ay))
+    grad = np.zeros_like(z)
+    grad[:, 1:] += 2.0 * ax / dx
+    grad[:, :-1] -= 2.0 * ax / dx
+    grad[1:] += 2.0 * ay / dy
+    grad[:-1] -= 2.0 * ay / dy
+    d_x = sparse.kron(sparse.identity(pings), _difference(cells, dx))
+    across = (2.0 * (d_x.T @ d_x)).tocsr()
+    along = np.zeros_like(z)
+    along[1:] += 2.0 / dy**2
+    along[:-1] += 2.0 / dy**2
+    return value, grad, across, along
+
+
+def estimate_looks(slant: np.ndarray, weight: np.ndarray) -> float:
+    """Equivalent number of looks L of the speckle, from neighbouring pings.
+
+    For independent L-look speckle on a mean ``μ`` that changes little from ping to ping,
+    ``E[I₁ I₂] = μ²`` and ``E[(I₁ − I₂)²] = 2 μ² / L``, so
+    ``L = 2 Σ I₁ I₂ / Σ (I₁ − I₂)²`` over the bins both pings cover (``weight > 0``). Relief
+    that changes between pings lowers the estimate; speckle correlated between pings raises
+    it. ``inf`` for identical pings.
+    """
+    keep = (weight[:-1] > 0) & (weight[1:] > 0)
+    a, b = slant[:-1][keep], slant[1:][keep]
+    diff = float(np.sum((a - b) ** 2))
+    same = float(np.sum(a * b))
+    if diff <= 0.0:
+        return math.inf
+    return 2.0 * same / diff

@@ -33,6 +33,21 @@ def _positive(kind: type):
     return parse
 
 
+def _looks(text: str) -> float | str | None:
+    """``--looks``: a number > 0, ``auto`` or ``none``."""
+    if text.lower() in ("auto", "none"):
+        return None if text.lower() == "none" else "auto"
+    try:
+        return _positive(float)(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(
+            f"must be a number > 0, auto or none, got {text}"
+        ) from None
+
+
+_looks.__name__ = "looks"
+
+
 class _Parser(argparse.ArgumentParser):
     """argparse with one-line errors: ``sonar-raster: error: ... (see --help)``, exit 2."""
 
@@ -64,8 +79,7 @@ def _parser() -> argparse.ArgumentParser:
         action="append",
         required=True,
         metavar="OUT",
-        help="output .png (display image), .exr (linear float) or .xtf (sonar records); "
-        "repeatable",
+        help="output .png (display image), .exr (linear float) or .xtf (sonar records); repeatable",
     )
     render.add_argument(
         "--range",
@@ -246,6 +260,29 @@ def _add_invert(sub) -> None:
         "(weight W, try 0.25): for broadly flat seabeds with small relief and a trusted "
         "--altitude; it flattens broad mounds and trenches",
     )
+    inv.add_argument(
+        "--looks",
+        type=_looks,
+        default="auto",
+        metavar="L|auto|none",
+        help="speckle looks of the image, which weigh priors on the relief and slopes against "
+        "the image noise (default auto: estimated from neighbouring pings; none: no priors, "
+        "for noise-free images)",
+    )
+    inv.add_argument(
+        "--relief-std",
+        type=_positive(float),
+        default=0.1,
+        metavar="METRES",
+        help="relief about the flat seabed assumed on speckled images (default 0.1)",
+    )
+    inv.add_argument(
+        "--slope-std",
+        type=_positive(float),
+        default=0.2,
+        metavar="S",
+        help="seabed slope (rise over run) assumed on speckled images (default 0.2)",
+    )
     inv.add_argument("--no-mesh", action="store_true", help="skip seabed.glb and seabed.ply")
     inv.add_argument("--no-previews", action="store_true", help="skip the preview renders")
     inv.add_argument(
@@ -277,6 +314,9 @@ def _invert(args: argparse.Namespace) -> int:
         tol=args.tol,
         beam=beam,
         flat_prior=args.flat_prior or 0.0,
+        looks=args.looks,
+        relief_std=args.relief_std,
+        slope_std=args.slope_std,
         progress=not args.quiet,
     )
     written = write_products(

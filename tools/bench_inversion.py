@@ -158,7 +158,7 @@ def speckled(image: np.ndarray, looks: float, name: str) -> np.ndarray:
 
 
 def scenes_table(
-    renderer, names: list[str], max_iter: int, looks: float = 0.0, **options
+    renderer, names: list[str], max_iter: int, speckle: float = 0.0, **options
 ) -> list[tuple[str, str, dict, float]]:
     print(
         f"{'seabed':8s} {'mode':10s} {'Z rmse':>8s} {'/scale':>7s} {'lvl-free':>9s} "
@@ -167,7 +167,7 @@ def scenes_table(
     rows = []
     for name in names:
         field, refl, image = render(renderer, name)
-        image = speckled(image, looks, name)
+        image = speckled(image, speckle, name)
         for mode in ("free", "calibrated"):
             beam = true_profile() if mode == "calibrated" else None
             inv, seconds = timed(image, max_iter=max_iter, beam=beam, **options)
@@ -276,12 +276,19 @@ def main() -> None:
         default=None,
         help="set sonar_raster.invert.SUBSAMPLES (points per cell's return) for every run",
     )
+    ap.add_argument(
+        "--looks",
+        default="auto",
+        help="invert(looks=...) of table 1: 'auto' (default), 'none' or a number",
+    )
     args = ap.parse_args()
     if args.subsamples is not None:
         import sonar_raster.invert
 
         sonar_raster.invert.SUBSAMPLES = args.subsamples
-    options: dict = {"flat_prior": args.flat_prior, "looks": args.speckle}
+    looks = None if args.looks == "none" else args.looks
+    looks = looks if looks in (None, "auto") else float(looks)
+    options: dict = {"flat_prior": args.flat_prior, "speckle": args.speckle, "looks": looks}
     if args.known_altitude:
         options["altitude"] = ALT
     with RasterRenderer() as renderer:
