@@ -6,9 +6,10 @@ ping's altitude ``h``; bin edges are those of the ground cells at the median alt
 a level track bin b is ground column b. The profile starts from the median (Eq. 21) of the
 image over each bin.
 
-On a speckled image two Gaussian priors on Z join the fit (see :func:`noise_variance`): on the
-relief ``Z − Z_flat`` and on the slopes. Their weights are the image noise variance over the
-assumed variances of relief and slopes, so they fade away as the image gets clean.
+On a speckled image two Gaussian priors on Z join the fit: on the relief ``Z − Z_flat`` and on
+the slopes (:func:`slope_roughness`). Their weights are the image noise variance, from the
+speckle looks (:func:`estimate_looks`), over the assumed variances of relief and slopes, so they
+fade away as the image gets clean (see ``invert``'s ``looks``).
 
 Reflectivity in shadow is tied to the nearest lit cell (Euclidean distance transform): the
 limit of the seed's hexadecagonal dilation, which grows lit regions by an almost round disc

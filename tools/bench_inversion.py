@@ -21,11 +21,14 @@ Table 2, run time against error on the ripples (free): levels 1, 2, 3 × a fixed
 iterations per level and start, then 3 levels with the stopping threshold ``tol`` (default 1e-2).
 
 Table 1 can also run with the flat-seabed prior (``--flat-prior W``), the true altitude
-(``--known-altitude``) instead of the first return, and on images with L-look speckle
-(``--speckle L``: each cell times an independent Gamma(L, 1/L) draw).
+(``--known-altitude``) instead of the first return, on images with L-look speckle
+(``--speckle L``: each cell times an independent Gamma(L, 1/L) draw), and with the speckle
+looks given to the inversion (``--looks``: ``auto``, the default, estimates them; ``none``
+leaves the noise priors out; a number fixes them).
 
 Usage: ``python tools/bench_inversion.py [--max-iter 100] [--seabeds flat,ripples,...]
-[--sweep 10,30,100] [--flat-prior 0.25] [--known-altitude] [--out bench_out]``; the plot goes
+[--sweep 10,30,100] [--flat-prior 0.25] [--known-altitude] [--speckle 1] [--looks auto]
+[--out bench_out]``; the plot goes
 to ``OUT/inversion_time_vs_error.png`` and a small copy to ``docs/inversion_time_vs_error.png``.
 """
 
