@@ -44,8 +44,6 @@ ALTITUDE_MEDIAN_PINGS = 9
 def first_return(slant: np.ndarray, range_bin: float, pings: int = 1) -> np.ndarray:
     """Altitude of the sonar over the seabed per ping from the first bottom return.
 
-    With ``pings > 1`` each ping is first replaced by the mean of its ``pings`` neighbours
-    without the brightest of them per bin (see :func:`_along_track_mean`), for speckled images.
     Each ping is smoothed (Gaussian, 0.75 bins) and the return detected where it first rises
     above ``floor + max(0.05 (p99 − floor), 8 σ)``, ``floor`` and ``σ`` the median and robust
     deviation (1.4826 MAD) of the image's nearest 2 % of bins (the water column) and ``p99`` the
@@ -57,12 +55,18 @@ def first_return(slant: np.ndarray, range_bin: float, pings: int = 1) -> np.ndar
     median filtered over 9 pings, so a ping with a noisy water column or no return takes its
     neighbours' value.
 
+    With ``pings > 1`` each ping is first replaced by the mean of its ``pings`` neighbours
+    without the brightest of them per bin (see :func:`_along_track_mean`): on speckled images
+    a single ping's leading edge is itself speckled.
+
     Parameters
     ----------
     slant : ndarray, shape (pings, bins)
         Linear intensity, bins from range 0 outward.
     range_bin : float
         Slant-range bin size, metres.
+    pings : int
+        Pings averaged around each ping before detection (1: none).
 
     Returns
     -------
