@@ -12,12 +12,13 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from scipy import ndimage
 
 from ._ground_model import Geometry, energy, evaluate, gauss_newton_z
-from ._invert_regular import slope_roughness
+from ._invert_regular import slope_hessian, slope_roughness
 
 #: Sufficient-decrease constant of the Armijo test.
 ARMIJO = 1e-4
@@ -84,6 +85,11 @@ class Problem:
         """
         return ndimage.gaussian_filter(values, self.flat_sigma, mode="constant")
 
+    @cached_property
+    def slope_hessian(self) -> tuple:
+        """The slope prior's constant Hessian parts (see :func:`slope_hessian`), built once."""
+        return slope_hessian(self.bins.shape, self.geom.dx, self.geom.dy)
+
     def flat_diagonal(self) -> float:
         """``Σ_k G_kj²`` of an inner cell: the diagonal of ``GᵀG`` (G is separable)."""
         out = 1.0
@@ -128,7 +134,8 @@ def _direction(grad: np.ndarray, diag: np.ndarray, scale: float) -> np.ndarray:
 
 def _search_direction(
     prob: Problem, r: np.ndarray, phi: np.ndarray, z: np.ndarray, steps: Steps
-) -> tuple[float, list[np.ndarray], float]:
+) -> tuple[list[np.ndarray], float]:
+    """Step directions of R, Φ and Z and the slope of E along them (gradient · direction)."""
     rc, pc = prob.cells(r, phi)
     ev = evaluate(prob.image, prob.weight, rc, pc, z, prob.geom, prob.smooth, prob.edge)
     nb = len(phi)
@@ -146,10 +153,10 @@ def _search_direction(
         prior_z += 2.0 * prob.relief
     coupled = None
     if prob.slopes > 0:
-        _, grad_slopes, across, along = slope_roughness(z, prob.geom.dx, prob.geom.dy)
-        grads[2] = grads[2] + prob.slopes * grad_slopes
+        across, along = prob.slope_hessian
+        grads[2] = grads[2] + prob.slopes * slope_roughness(z, prob.geom.dx, prob.geom.dy)[1]
         coupled = prob.slopes * across
-        prior_z = prior_z + prob.slopes * along
+        prior_z += prob.slopes * along
     if prob.smooth_phi > 0 and len(phi) > 2:
         d2 = np.diff(phi, 2)
         adj = np.zeros_like(phi)
@@ -157,14 +164,12 @@ def _search_direction(
         adj[1:-1] -= 2.0 * d2
         adj[2:] += d2
         grads[1] = grads[1] + 2.0 * prob.smooth_phi * adj
-    diags = [
-        np.bincount(prob.tie, ev.diag_r.ravel(), minlength=r.size),
-        np.bincount(prob.bins.ravel(), ev.diag_phi.ravel(), minlength=nb) + 12.0 * prob.smooth_phi,
-        ev.diag_z + prior_z + (0.0 if coupled is None else coupled.diagonal().reshape(z.shape)),
-    ]
+    diag_r = np.bincount(prob.tie, ev.diag_r.ravel(), minlength=r.size)
+    diag_phi = np.bincount(prob.bins.ravel(), ev.diag_phi.ravel(), minlength=nb)
     dirs = [
-        _direction(g, d, s)
-        for g, d, s in zip(grads, diags, (steps.r, steps.phi, steps.z), strict=True)
+        _direction(grads[0], diag_r, steps.r),
+        _direction(grads[1], diag_phi + 12.0 * prob.smooth_phi, steps.phi),
+        np.zeros_like(z),
     ]
     if steps.z > 0 and z.size:
         dirs[2] = steps.z * gauss_newton_z(
@@ -174,7 +179,7 @@ def _search_direction(
     if biggest > prob.geom.dx:
         dirs[2] *= prob.geom.dx / biggest
     slope = sum(float(np.sum(g * d)) for g, d in zip(grads, dirs, strict=True))
-    return prob.energy(r, phi, z), dirs, slope
+    return dirs, slope
 
 
 def iterate(
@@ -219,7 +224,8 @@ def iterate(
     t = 1.0
     stopped = "max_iter"
     for _ in range(max_iter):
-        e0, dirs, slope = _search_direction(prob, r, phi, z, steps)
+        e0 = energies[-1]
+        dirs, slope = _search_direction(prob, r, phi, z, steps)
         if not slope < 0:
             stopped = "stalled"
             break

@@ -91,21 +91,14 @@ def _difference(n: int, step: float) -> sparse.csr_matrix:
     return sparse.diags([-np.ones(n - 1), np.ones(n - 1)], [0, 1], (max(n - 1, 0), n)) / step
 
 
-def slope_roughness(
-    z: np.ndarray, dx: float, dy: float
-) -> tuple[float, np.ndarray, sparse.csr_matrix, np.ndarray]:
-    """``Σ (∂Z/∂x)² + Σ (∂Z/∂y)²`` over forward differences, its gradient and its Hessian.
+def slope_roughness(z: np.ndarray, dx: float, dy: float) -> tuple[float, np.ndarray]:
+    """``Σ (∂Z/∂x)² + Σ (∂Z/∂y)²`` over forward differences and its gradient (shape of ``z``).
 
     The prior of a seabed whose slopes have a standard deviation ``s`` is this sum over
     ``2 s²``. Unlike the image, it ties each ping's Z to its neighbours' (the model image does
-    not depend on ``∂Z/∂y``, so the data fit every ping alone). Returns the value, the gradient
-    (shape of ``z``), and the constant Hessian in two parts: the across-track part, a sparse
-    (pings·cells)² matrix that couples cells of one ping only (a 1-D Laplacian per ping, free
-    ends), and the diagonal of the along-track part (shape of ``z``). Keeping the pings apart
-    keeps the Gauss-Newton matrix block diagonal, one banded block per ping, so its solve
-    stays as cheap as without the prior.
+    not depend on ``∂Z/∂y``, so the data fit every ping alone). Its Hessian is constant: see
+    :func:`slope_hessian`.
     """
-    pings, cells = z.shape
     ax, ay = np.diff(z, axis=1) / dx, np.diff(z, axis=0) / dy
     value = float(np.sum(ax * ax) + np.sum(ay * ay))
     grad = np.zeros_like(z)
@@ -113,12 +106,25 @@ def slope_roughness(
     grad[:, :-1] -= 2.0 * ax / dx
     grad[1:] += 2.0 * ay / dy
     grad[:-1] -= 2.0 * ay / dy
+    return value, grad
+
+
+def slope_hessian(
+    shape: tuple[int, int], dx: float, dy: float
+) -> tuple[sparse.csr_matrix, np.ndarray]:
+    """The Hessian of :func:`slope_roughness` in two parts, for Z of ``shape`` (pings, cells).
+
+    The across-track part, a sparse (pings·cells)² matrix that couples cells of one ping only
+    (a 1-D Laplacian per ping, free ends), and the diagonal of the along-track part (shape
+    ``shape``). Keeping the pings apart keeps the Gauss-Newton matrix block diagonal, one
+    banded block per ping, so its solve stays as cheap as without the prior.
+    """
+    pings, cells = shape
     d_x = sparse.kron(sparse.identity(pings), _difference(cells, dx))
-    across = (2.0 * (d_x.T @ d_x)).tocsr()
-    along = np.zeros_like(z)
+    along = np.zeros(shape)
     along[1:] += 2.0 / dy**2
     along[:-1] += 2.0 / dy**2
-    return value, grad, across, along
+    return (2.0 * (d_x.T @ d_x)).tocsr(), along
 
 
 def estimate_looks(slant: np.ndarray, weight: np.ndarray) -> float:

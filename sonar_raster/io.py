@@ -261,9 +261,14 @@ def temp_name(final: Path) -> Path:
     return final.with_name(f".{final.name}.{secrets.token_hex(6)}{final.suffix}")
 
 
+def png_type(bit_depth: int) -> tuple[type, Any]:
+    """The numpy integer type and OpenImageIO type of an 8- or 16-bit PNG."""
+    return (np.uint8, oiio.UINT8) if bit_depth == 8 else (np.uint16, oiio.UINT16)
+
+
 def quantised_codes(codes: np.ndarray, bit_depth: int) -> tuple[np.ndarray, Any]:
     """Display codes in [0, 1] as 8- or 16-bit integers, and their OpenImageIO type."""
-    dtype, fmt = (np.uint8, oiio.UINT8) if bit_depth == 8 else (np.uint16, oiio.UINT16)
+    dtype, fmt = png_type(bit_depth)
     return np.rint(codes * np.iinfo(dtype).max).astype(dtype), fmt
 
 

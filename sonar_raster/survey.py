@@ -264,7 +264,7 @@ def _png_from_exr(
         spec = inp.spec()
         names = list(spec.channelnames)
         width = spec.width * len(names)
-        fmt = sio.quantised_codes(np.zeros(0), bit_depth)[1]
+        fmt = sio.png_type(bit_depth)[1]
         out_spec = oiio.ImageSpec(width, spec.height, 1, fmt)
         out_spec.channelnames = ("Y",)
         for name, value in sio._png_attributes(header, mapping, bit_depth).items():

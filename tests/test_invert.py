@@ -18,7 +18,7 @@ from sonar_raster._ground_model import (
     slope_adjoint,
 )
 from sonar_raster._invert_em import Problem, Steps, _search_direction
-from sonar_raster._invert_regular import estimate_looks, slope_roughness
+from sonar_raster._invert_regular import estimate_looks, slope_hessian, slope_roughness
 from sonar_raster.errors import SonarRasterError
 from sonar_raster.invert import BeamProfile, invert
 from sonar_raster.scene import build_scene
@@ -136,7 +136,7 @@ def test_beam_curvature_gradient_matches_central_differences():
     )
     r, phi = rng.uniform(0.3, 1.0, 24), rng.uniform(0.5, 2.0, 6)
     z = -10.0 + 0.2 * rng.standard_normal(shape)
-    _, dirs, slope_ = _search_direction(prob, r, phi, z, Steps(0.0, 1.0, 0.0))
+    dirs, slope_ = _search_direction(prob, r, phi, z, Steps(0.0, 1.0, 0.0))
     h = 1e-6
     num = (prob.energy(r, phi + h * dirs[1], z) - prob.energy(r, phi - h * dirs[1], z)) / (2 * h)
     assert slope_ == pytest.approx(num, rel=1e-5)
@@ -166,7 +166,7 @@ def test_prior_gradients_match_central_differences(steps):
     )
     r, phi = rng.uniform(0.3, 1.0, 24), rng.uniform(0.5, 2.0, 6)
     z = z0 + 0.2 * rng.standard_normal((4, 6))
-    _, dirs, slope_ = _search_direction(prob, r, phi, z, steps)
+    dirs, slope_ = _search_direction(prob, r, phi, z, steps)
     h = 1e-6
     up = prob.energy(r + h * dirs[0], phi, z + h * dirs[2])
     down = prob.energy(r - h * dirs[0], phi, z - h * dirs[2])
@@ -176,12 +176,13 @@ def test_prior_gradients_match_central_differences(steps):
 
 def test_slope_roughness_gradient_and_hessian():
     # Σ (∂Z/∂x)² + (∂Z/∂y)² is quadratic: value and gradient by finite differences; the full
-    # Hessian (gradient differences along unit vectors, exact) must equal the returned
-    # across-track part within each ping, and its diagonal the across part's plus ``along``.
+    # Hessian (gradient differences along unit vectors, exact) must equal the across-track part
+    # of slope_hessian within each ping, and its diagonal the across part's plus ``along``.
     rng = np.random.default_rng(12)
     shape = (5, 7)
     z, v = rng.standard_normal(shape), rng.standard_normal(shape)
-    value, grad, across, along = slope_roughness(z, 0.3, 0.7)
+    value, grad = slope_roughness(z, 0.3, 0.7)
+    across, along = slope_hessian(shape, 0.3, 0.7)
     ax, ay = np.diff(z, axis=1) / 0.3, np.diff(z, axis=0) / 0.7
     assert value == pytest.approx(np.sum(ax**2) + np.sum(ay**2), rel=1e-12)
     h = 1e-6
@@ -191,9 +192,8 @@ def test_slope_roughness_gradient_and_hessian():
         [(slope_roughness(z + e.reshape(shape), 0.3, 0.7)[1] - grad).ravel() for e in np.eye(35)]
     )
     same_ping = np.equal.outer(np.arange(35) // 7, np.arange(35) // 7)
-    np.testing.assert_allclose(
-        across.toarray(), np.where(same_ping, full, 0.0) - np.diag(along.ravel()), atol=1e-9
-    )
+    within = np.where(same_ping, full, 0.0) - np.diag(along.ravel())
+    np.testing.assert_allclose(across.toarray(), within, atol=1e-9)
     np.testing.assert_allclose(np.diag(full), across.diagonal() + along.ravel(), rtol=1e-12)
     assert np.allclose(full @ np.ones(35), 0.0, atol=1e-9)  # a level shift costs nothing
 
