@@ -9,8 +9,8 @@ import pytest
 from conftest import SHARED_DATA, box_from_bounds, plane
 
 from sonar_raster import render_raster
-from sonar_raster.bottom import first_return, track_bottom, track_side
 from sonar_raster.errors import SonarRasterError
+from sonar_raster.invert.bottom import first_return, track_bottom, track_side
 from sonar_raster.scene import MeshPart, build_scene
 from sonar_raster.sonar import BeamPattern, Sonar
 from sonar_raster.trajectory import Trajectory
@@ -161,7 +161,7 @@ def test_real_file_tracks_the_recorded_altitude_trend():
     (the altimeter looks elsewhere than the side-scan fan), so compare after removing it."""
     if not SAMPLE.is_file():
         pytest.skip(f"{SAMPLE} not present")
-    from sonar_raster.xtf import read_xtf
+    from sonar_raster.io.xtf import read_xtf
 
     image, nav = read_xtf(SAMPLE)
     track = track_bottom(image.sides, image.sonar.range_bin)

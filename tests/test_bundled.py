@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sonar_raster.bundled import DEFAULT_SCENE, bundled_scene, list_bundled
-from sonar_raster.description import load_scene_file
-from sonar_raster.reference import render_reference
+from sonar_raster.render.reference import render_reference
+from sonar_raster.scenes.bundled import DEFAULT_SCENE, bundled_scene, list_bundled
+from sonar_raster.scenes.description import load_scene_file
 
 NAMES = [name for name, _ in list_bundled()]
 

@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sonar_raster.cli import main
-from sonar_raster.io import read_exr
+from sonar_raster.cli.app import main
+from sonar_raster.io.images import read_exr
 
 CUBE_OBJ = """v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1
 f 1 3 2\nf 1 4 3\nf 5 6 7\nf 5 7 8\nf 1 2 6\nf 1 6 5\nf 2 3 7\nf 2 7 6\nf 3 4 8\nf 3 8 7
@@ -21,7 +21,7 @@ f 4 1 5\nf 4 5 8
 
 def run_cli(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run(
-        [sys.executable, "-m", "sonar_raster.cli", *args],
+        [sys.executable, "-m", "sonar_raster", *args],
         capture_output=True,
         text=True,
         timeout=300,
@@ -72,7 +72,7 @@ def test_help_is_instant_and_lists_commands():
         [
             sys.executable,
             "-c",
-            "import sys, sonar_raster.cli as c\n"
+            "import sys, sonar_raster.cli.app as c\n"
             "try:\n    c.main(['--help'])\nexcept SystemExit:\n    pass\n"
             "print(sorted(m for m in ('moderngl', 'trimesh', 'OpenImageIO', 'scipy', 'skimage')"
             " if m in sys.modules))",
@@ -189,7 +189,7 @@ def test_bare_model_with_offset_origin_is_centred(tmp_path):
         ]
     ]
     model.write_text("\n".join(verts + lines) + "\n")
-    from sonar_raster.description import load_scene_file
+    from sonar_raster.scenes.description import load_scene_file
 
     setup = load_scene_file(model)
     cube = setup.scene.vertices[np.unique(setup.scene.faces[setup.scene.object_id == 1])]

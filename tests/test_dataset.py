@@ -11,11 +11,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sonar_raster._dataset_labels import rle_decode, rle_encode, shadow_owners
-from sonar_raster._dataset_scene import draw_sample
-from sonar_raster._objects import build_primitive
-from sonar_raster.dataset import generate_dataset, load_dataset_config
+from sonar_raster.dataset.generate import generate_dataset, load_dataset_config
+from sonar_raster.dataset.labels import rle_decode, rle_encode, shadow_owners
+from sonar_raster.dataset.scene import draw_sample
 from sonar_raster.errors import SonarRasterError
+from sonar_raster.scenes.objects import build_primitive
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -190,7 +190,7 @@ def test_a_killed_command_resumes_to_the_uninterrupted_dataset(reference, tmp_pa
 
     config, ref = reference
     out = tmp_path / "killed"
-    cmd = [sys.executable, "-m", "sonar_raster.cli", "dataset", config.source, "-o", str(out)]
+    cmd = [sys.executable, "-m", "sonar_raster", "dataset", config.source, "-o", str(out)]
     proc = subprocess.Popen([*cmd, "-n", "6", "-q"])
     index = out / "index.jsonl"
     deadline = time.monotonic() + 120
@@ -269,7 +269,7 @@ def test_config_errors_name_the_key(tmp_path, change, message):
 
 
 def test_an_unexpected_failure_is_retried_by_the_next_run(reference, tmp_path, monkeypatch):
-    from sonar_raster import _dataset_sample
+    from sonar_raster.dataset import sample as _dataset_sample
 
     config, ref = reference
     real = _dataset_sample.make_sample
@@ -293,9 +293,9 @@ def test_a_user_mesh_is_turned_up_scaled_and_given_the_drawn_reflectivity(tmp_pa
     """barrel.wrl is y-up (VRML): its 0.88 m y extent becomes the object's height."""
     import shutil
 
-    from sonar_raster.meshio import load_model
+    from sonar_raster.meshio.load import load_model
 
-    shutil.copy(ROOT / "scenes" / "barrel.wrl", tmp_path / "barrel.wrl")
+    shutil.copy(ROOT / "sonar_raster/scenes/data" / "barrel.wrl", tmp_path / "barrel.wrl")
     text = SMALL.replace('primitive = "cylinder"', 'file = "barrel.wrl"')
     text = text.replace("radius = 0.25\nlength = 1.2", "scale = 1.5\nreflectivity = 0.6")
     config = _config(tmp_path, text.replace("{ integers = [0, 2] }", "1"))
@@ -315,7 +315,7 @@ def test_bad_config_is_one_line_and_no_output(tmp_path):
     path.write_text(SMALL.replace("[placement]", "[placement]\nground_rnage = 0.5"))
     out = tmp_path / "out"
     proc = subprocess.run(
-        [sys.executable, "-m", "sonar_raster.cli", "dataset", str(path), "-o", str(out)],
+        [sys.executable, "-m", "sonar_raster", "dataset", str(path), "-o", str(out)],
         capture_output=True,
         text=True,
         check=False,
@@ -526,7 +526,7 @@ def test_rle_round_trip():
 
 
 def test_effects_change_the_image_but_not_the_labels(reference, tmp_path):
-    pytest.importorskip("sonar_raster.effects")
+    pytest.importorskip("sonar_raster.effects.chain")
     config, ref = reference
     text = Path(config.source).read_text() + '\n[effects]\nspeckle = "exponential"\n'
     noisy = _config(tmp_path, text, "noisy.toml")
@@ -573,7 +573,7 @@ def test_cylinder_lies_along_x():
 
 
 def test_bundled_config_loads_and_draws_a_sample_in_its_swath():
-    config = load_dataset_config(ROOT / "scenes" / "dataset_default.toml")
+    config = load_dataset_config(ROOT / "sonar_raster/scenes/data" / "dataset_default.toml")
     assert config.pings == 512 and config.bins == 1024
     drawn = draw_sample(config, 0, 3)
     assert drawn.sonar.n_bins == 1024 and drawn.trajectory.n_pings == 512

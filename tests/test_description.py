@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from sonar_raster.description import Overrides, load_scene_file
 from sonar_raster.errors import SonarRasterError
-from sonar_raster.glcontext import create_context, requested_backends
+from sonar_raster.render.gl.context import create_context, requested_backends
+from sonar_raster.scenes.description import Overrides, load_scene_file
 
 
 def write(tmp_path, text: str, name: str = "scene.toml"):
@@ -155,7 +155,7 @@ def test_unknown_backend_and_missing_libraries(monkeypatch):
     def fail(name):
         raise RuntimeError(f"{name} library not found")
 
-    monkeypatch.setattr("sonar_raster.glcontext._create", fail)
+    monkeypatch.setattr("sonar_raster.render.gl.context._create", fail)
     with pytest.raises(SonarRasterError) as info:
         create_context(None)
     message = str(info.value)

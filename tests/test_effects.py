@@ -9,14 +9,14 @@ import pytest
 from conftest import box_from_bounds, plane
 from scipy import special, stats
 
-from sonar_raster import effects as fx_module
-from sonar_raster._absorption import francois_garrison
-from sonar_raster.analytic import flat_seabed_profile
-from sonar_raster.effects import Effects, apply_effects, load_tvg_curve
+from sonar_raster.effects.absorption import francois_garrison
+from sonar_raster.effects.chain import Effects, apply_effects, load_tvg_curve
+from sonar_raster.effects import chain as fx_module
 from sonar_raster.errors import SonarRasterError
 from sonar_raster.image import SonarImage
+from sonar_raster.render.analytic import flat_seabed_profile
 from sonar_raster.scene import build_scene
-from sonar_raster.sediments import SEDIMENTS, material_reflectivity, sediment
+from sonar_raster.scenes.sediments import SEDIMENTS, material_reflectivity, sediment
 from sonar_raster.sonar import BeamPattern, Sonar
 from sonar_raster.trajectory import Trajectory
 
@@ -465,7 +465,7 @@ tvg_curve = "tvg.csv"
 
 
 def test_scene_materials_and_effects_table(tmp_path):
-    from sonar_raster.description import load_scene_file
+    from sonar_raster.scenes.description import load_scene_file
 
     (tmp_path / "tvg.csv").write_text("0,0\n20,40\n")
     path = tmp_path / "s.toml"
@@ -494,8 +494,8 @@ def test_scene_materials_and_effects_table(tmp_path):
 
 
 def test_cli_effects_options(tmp_path):
-    from sonar_raster.cli import main
-    from sonar_raster.io import read_exr
+    from sonar_raster.cli.app import main
+    from sonar_raster.io.images import read_exr
 
     plain, fx = tmp_path / "plain.exr", tmp_path / "fx.exr"
     common = ["render", "flat_calibration", "--pings", "30", "-q"]
@@ -516,8 +516,8 @@ def test_cli_effects_options(tmp_path):
 
 
 def test_cli_options_merge_over_the_scene_effects():
-    from sonar_raster._effects_cli import effects_from_args
-    from sonar_raster.cli import _parser
+    from sonar_raster.cli.effects_options import effects_from_args
+    from sonar_raster.cli.app import _parser
 
     def parse(*extra):
         return _parser().parse_args(["render", "x.toml", "-o", "o.png", *extra])

@@ -7,8 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from sonar_raster._ground import first_return, ground_to_slant, slant_to_ground
-from sonar_raster._ground_model import (
+from sonar_raster.errors import SonarRasterError
+from sonar_raster.invert.em import Problem, Steps, _search_direction
+from sonar_raster.invert.ground import first_return, ground_to_slant, slant_to_ground
+from sonar_raster.invert.model import (
     Geometry,
     energy,
     evaluate,
@@ -17,12 +19,10 @@ from sonar_raster._ground_model import (
     slope,
     slope_adjoint,
 )
-from sonar_raster._invert_em import Problem, Steps, _search_direction
-from sonar_raster._invert_regular import estimate_looks, slope_hessian, slope_roughness
-from sonar_raster.errors import SonarRasterError
-from sonar_raster.invert import BeamProfile, invert
+from sonar_raster.invert.priors import estimate_looks, slope_hessian, slope_roughness
+from sonar_raster.invert.solver import BeamProfile, invert
 from sonar_raster.scene import build_scene
-from sonar_raster.seabed import from_grid, make_seabed
+from sonar_raster.scenes.seabed import from_grid, make_seabed
 from sonar_raster.sonar import BeamPattern, Sonar
 from sonar_raster.trajectory import Trajectory
 
@@ -454,7 +454,7 @@ def test_stability_at_grazing_and_near_nadir(altitude):
 def test_no_estimate_where_the_data_end():
     # The last cells' returns and their slope neighbours' fall partly beyond the image: they
     # get NaN (EDGE_BINS = 6 bins of slant range), the cells before them an estimate.
-    from sonar_raster.invert import EDGE_BINS
+    from sonar_raster.invert.solver import EDGE_BINS
 
     h, rb, bins = 5.0, 0.05, 300
     x = (np.arange(400) + 0.5) * rb
@@ -503,8 +503,8 @@ def test_ground_cells_longer_than_a_bin_alias_and_are_refused():
 def test_cli_invert_renderer_exr(gl_renderer, ripples, tmp_path, capsys):
     import json
 
-    from sonar_raster.cli import main
-    from sonar_raster.io import write_image
+    from sonar_raster.cli.app import main
+    from sonar_raster.io.images import write_image
 
     image = gl_renderer.render(build_scene([ripples.mesh(0.5)]), SONAR, TRACK)
     write_image(image, tmp_path / "in.exr", sidecar=False)
@@ -547,7 +547,7 @@ def test_cli_invert_renderer_exr(gl_renderer, ripples, tmp_path, capsys):
     ],
 )
 def test_cli_invert_bad_input_writes_nothing(argv, tmp_path, monkeypatch, capsys):
-    from sonar_raster.cli import main
+    from sonar_raster.cli.app import main
 
     monkeypatch.chdir(tmp_path)
     np.save("neg.npy", -np.ones((4, 20)))
@@ -566,7 +566,7 @@ def test_cli_invert_bad_input_writes_nothing(argv, tmp_path, monkeypatch, capsys
 def test_png_input_is_read_as_linear_grey_levels(tmp_path):
     import OpenImageIO as oiio
 
-    from sonar_raster._invert_io import read_side
+    from sonar_raster.invert.write import read_side
 
     levels = (np.arange(6 * 9).reshape(6, 9) * 4).astype(np.uint8)
     out = oiio.ImageOutput.create(str(tmp_path / "in.png"))

@@ -7,9 +7,9 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from sonar_raster import io
 from sonar_raster.errors import SonarRasterError
 from sonar_raster.image import SonarImage
+from sonar_raster.io import images as io
 from sonar_raster.sonar import Sonar
 
 PINGS, BINS = 37, 53  # non-square, so a transpose cannot pass

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sonar_raster.description import load_scene_file
 from sonar_raster.errors import SonarRasterError
-from sonar_raster.seabed import Heightfield, level_of_detail
+from sonar_raster.scenes.description import load_scene_file
+from sonar_raster.scenes.seabed import Heightfield, level_of_detail
 
 
 def _field(dx: float, f) -> Heightfield:

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from sonar_raster.errors import SonarRasterError
-from sonar_raster.meshio import load_model
+from sonar_raster.meshio.load import load_model
 
 trimesh = pytest.importorskip("trimesh")
 T = trimesh.transformations
@@ -180,7 +180,7 @@ def test_missing_file_and_folder_raise(tmp_path):
 
 
 def test_importing_meshio_does_not_import_trimesh():
-    code = "import sys, sonar_raster.meshio; print('trimesh' in sys.modules)"
+    code = "import sys, sonar_raster.meshio.load; print('trimesh' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
 

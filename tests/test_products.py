@@ -8,13 +8,13 @@ import math
 import numpy as np
 import pytest
 
-from sonar_raster._mesh_export import export, seabed_mesh
-from sonar_raster._preview import BACKGROUND, render_previews
-from sonar_raster._products import even_illumination, mean_incidence_cos, reproject
 from sonar_raster.errors import SonarRasterError
-from sonar_raster.invert import invert
+from sonar_raster.invert.products import even_illumination, mean_incidence_cos, reproject
+from sonar_raster.invert.solver import invert
+from sonar_raster.meshio.export import export, seabed_mesh
+from sonar_raster.render.gl.preview import BACKGROUND, render_previews
 from sonar_raster.scene import build_scene
-from sonar_raster.seabed import make_seabed
+from sonar_raster.scenes.seabed import make_seabed
 from sonar_raster.sonar import BeamPattern, Sonar
 from sonar_raster.trajectory import Trajectory
 
@@ -182,7 +182,7 @@ def test_previews_are_non_empty_images_of_the_requested_size():
 
 
 def test_cli_writes_every_product_atomically(flat_image, tmp_path):
-    from sonar_raster.cli import main
+    from sonar_raster.cli.app import main
 
     np.save(tmp_path / "flat.npy", flat_image)
     out = tmp_path / "out"
@@ -206,8 +206,8 @@ def test_cli_writes_every_product_atomically(flat_image, tmp_path):
 
 
 def test_cli_failure_in_a_late_product_leaves_nothing(flat_image, tmp_path, monkeypatch, capsys):
-    import sonar_raster._preview as preview
-    from sonar_raster.cli import main
+    import sonar_raster.render.gl.preview as preview
+    from sonar_raster.cli.app import main
 
     def broken(*args, **kwargs):
         raise SonarRasterError("no headless OpenGL")
@@ -226,7 +226,7 @@ def test_cli_failure_in_a_late_product_leaves_nothing(flat_image, tmp_path, monk
     [["--beam", "missing.json"], ["--levels", "0"], ["--tol", "-1"]],
 )
 def test_cli_bad_options_fail_cleanly(extra, tmp_path, monkeypatch, capsys):
-    from sonar_raster.cli import main
+    from sonar_raster.cli.app import main
 
     monkeypatch.chdir(tmp_path)
     np.save("img.npy", np.ones((8, 50)))

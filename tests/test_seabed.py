@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from sonar_raster import seabed
-from sonar_raster.description import load_scene_file
 from sonar_raster.errors import SonarRasterError
 from sonar_raster.scene import build_scene
-from sonar_raster.seabed import Heightfield, heightfield_mesh
+from sonar_raster.scenes import seabed
+from sonar_raster.scenes.description import load_scene_file
+from sonar_raster.scenes.seabed import Heightfield, heightfield_mesh
 
 
 @pytest.fixture(autouse=True)

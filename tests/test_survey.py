@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 from conftest import box_from_bounds, rect_seabed
 
-from sonar_raster.cli import main
+from sonar_raster.cli.app import main
 from sonar_raster.errors import SonarRasterError
-from sonar_raster.io import read_exr, read_pixels, write_image
-from sonar_raster.raster import render_raster
+from sonar_raster.io.images import read_exr, read_pixels, write_image
+from sonar_raster.render.gl.raster import render_raster
+from sonar_raster.render.survey import render_survey
 from sonar_raster.scene import build_scene
 from sonar_raster.sonar import Sonar
-from sonar_raster.survey import render_survey
 from sonar_raster.trajectory import Trajectory
 
 
@@ -62,7 +62,7 @@ def test_a_failed_survey_leaves_nothing(tmp_path, setup, monkeypatch):
             raise SonarRasterError("disk full (simulated)")
         return original(self, block)
 
-    from sonar_raster import survey
+    from sonar_raster.render import survey
 
     original = survey.ExrStreamWriter.write
     monkeypatch.setattr(survey.ExrStreamWriter, "write", broken)
@@ -86,7 +86,7 @@ def test_cli_streams_with_chunk_pings(tmp_path, capsys):
 
 
 def test_streamed_and_whole_xtf_read_back_the_same(tmp_path):
-    from sonar_raster.xtf import read_xtf
+    from sonar_raster.io.xtf import read_xtf
 
     assert main(["render", "default", "-o", str(tmp_path / "whole.xtf"), "-q"]) == 0
     code = main(["render", "default", "-o", str(tmp_path / "s.xtf"), "--chunk-pings", "64", "-q"])

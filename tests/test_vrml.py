@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sonar_raster._vrml import SEGMENTS, load_vrml, parse_vrml
 from sonar_raster.errors import SonarRasterError
+from sonar_raster.meshio.vrml import SEGMENTS, load_vrml, parse_vrml
 
 DATA = Path(__file__).parents[1] / ".." / "shared" / "data" / "vrml"
 HEADER = "#VRML V2.0 utf8\n"

@@ -10,13 +10,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sonar_raster.io import read_exr
+from sonar_raster.io.images import read_exr
 
 ROOT = Path(__file__).resolve().parents[1]
 
 RENDER = """
 import sys, sonar_raster
-from sonar_raster.cli import main
+from sonar_raster.cli.app import main
 print(sonar_raster.__file__)
 sys.exit(main(["render", "default", "-o", sys.argv[1], "--pings", "12", "-q"]))
 """

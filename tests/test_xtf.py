@@ -11,12 +11,12 @@ import pytest
 from conftest import SHARED_DATA, plane
 
 from sonar_raster import render_raster
-from sonar_raster.cli import main
+from sonar_raster.cli.app import main
 from sonar_raster.errors import SonarRasterError
+from sonar_raster.io.xtf import XtfReader, _sound_speed, iter_pings, read_xtf, write_xtf
 from sonar_raster.scene import build_scene
 from sonar_raster.sonar import BeamPattern, Sonar
 from sonar_raster.trajectory import Trajectory
-from sonar_raster.xtf import XtfReader, _sound_speed, iter_pings, read_xtf, write_xtf
 
 pyxtf = pytest.importorskip("pyxtf")
 
@@ -294,7 +294,7 @@ def test_cli_track_png(tmp_path):
 
 
 def test_ground_positions_analytic():
-    from sonar_raster._georef import ground_positions
+    from sonar_raster.invert.xtf import ground_positions
 
     east, north = np.array([100.0, 100.0]), np.array([200.0, 200.0])
     heading = np.radians([90.0, 0.0])  # east, north
@@ -319,8 +319,8 @@ def test_geotiff_places_values_at_their_coordinates(tmp_path):
     its centre's coordinates."""
     import rasterio
 
-    from sonar_raster._georef import geotiff_jobs, grid, ground_positions
-    from sonar_raster.io import _commit
+    from sonar_raster.invert.xtf import geotiff_jobs, grid, ground_positions
+    from sonar_raster.io.images import _commit
 
     pings = 60
     heading = np.full(pings, math.radians(30.0))
@@ -401,7 +401,7 @@ def _wreck_stands_above_seabed(directory: Path) -> None:
 
     import OpenImageIO as oiio
 
-    from sonar_raster.shadow import find_shadows, object_pings
+    from sonar_raster.invert.shadows import find_shadows, object_pings
 
     image, _ = read_xtf(SAMPLE, pings=slice(288, 312))
     doc = json.loads((directory / "inversion.json").read_text())

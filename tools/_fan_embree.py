@@ -7,7 +7,7 @@ look angle ``Warp.columns`` gives it. Each ray is cast with embree (trimesh's
 ``RayMeshIntersector.intersects_first``: one nearest hit, front or back face); the hit distance
 is recomputed in float64 from the hit face's plane, as the fragment shader does. A front-facing
 hit (Lambert) weighs ``R · Φ(α − axis) dα · t · row_width`` and is deposited into range bins by
-the rule of ``shaders/range_accumulate.glsl``, in float64 instead of fixed point: "footprint"
+the rule of ``gl/range_accumulate.glsl``, in float64 instead of fixed point: "footprint"
 shares it among the bins its patch of surface covers, whose ranges are spread like the sum of two
 uniform variables (the range width cut by the column's edge rays, and that of the row's
 along-track extent; a trapezoid, at most 16 bins wide); "nearest" puts it in the bin of the
@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sonar_raster.image import SonarImage
-from sonar_raster.raster import RasterRenderer, RasterSettings
+from sonar_raster.render.gl.raster import RasterRenderer, RasterSettings
 from sonar_raster.scene import Scene
 from sonar_raster.sonar import Sonar
 from sonar_raster.trajectory import Trajectory

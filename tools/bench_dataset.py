@@ -31,7 +31,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from sonar_raster.dataset import STAGES, generate_dataset, load_dataset_config  # noqa: E402
+from sonar_raster.dataset.generate import STAGES, generate_dataset, load_dataset_config  # noqa: E402
 
 
 def run_mode(config, mode: str, n: int, seed: int) -> dict:
@@ -62,8 +62,8 @@ def run_mode(config, mode: str, n: int, seed: int) -> dict:
 
 def plain_render(config, n: int, seed: int) -> dict:
     """Baseline: the same scenes rendered without labels and without the seabed-only pass."""
-    from sonar_raster._dataset_scene import draw_sample
-    from sonar_raster.raster import RasterRenderer
+    from sonar_raster.dataset.scene import draw_sample
+    from sonar_raster.render.gl.raster import RasterRenderer
 
     times = {"labelled": 0.0, "plain": 0.0}
     with RasterRenderer() as renderer:
@@ -87,7 +87,7 @@ def main() -> None:
     ap.add_argument("-n", type=int, default=8, help="samples per mode")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--modes", default="1,2,dask")
-    ap.add_argument("--config", default=str(ROOT / "scenes" / "dataset_default.toml"))
+    ap.add_argument("--config", default=str(ROOT / "sonar_raster/scenes/data/dataset_default.toml"))
     args = ap.parse_args()
     config = load_dataset_config(args.config)
     print(

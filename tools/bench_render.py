@@ -45,12 +45,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _fan_embree import EmbreeFan  # noqa: E402
 
-from sonar_raster.bundled import bundled_scene, list_bundled  # noqa: E402
-from sonar_raster.description import load_scene_file  # noqa: E402
-from sonar_raster.raster import RasterRenderer, RasterSettings  # noqa: E402
-from sonar_raster.reference import render_reference  # noqa: E402
+from sonar_raster.render.gl.raster import RasterRenderer, RasterSettings  # noqa: E402
+from sonar_raster.render.reference import render_reference  # noqa: E402
 from sonar_raster.scene import Scene, build_scene  # noqa: E402
-from sonar_raster.seabed import make_seabed  # noqa: E402
+from sonar_raster.scenes.bundled import bundled_scene, list_bundled  # noqa: E402
+from sonar_raster.scenes.description import load_scene_file  # noqa: E402
+from sonar_raster.scenes.seabed import make_seabed  # noqa: E402
 from sonar_raster.sonar import BeamPattern, Sonar  # noqa: E402
 from sonar_raster.trajectory import Trajectory  # noqa: E402
 

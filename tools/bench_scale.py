@@ -39,7 +39,7 @@ SPACING, ALTITUDE, RANGE = 0.2, 10.0, 50.0
 def seabed(triangles: int):
     """A gently undulating grid seabed of about ``triangles`` triangles, centred on y = 0."""
     from sonar_raster.scene import build_scene
-    from sonar_raster.seabed import heightfield_mesh
+    from sonar_raster.scenes.seabed import heightfield_mesh
 
     nx = int(WIDTH / CELL) + 1
     ny = max(2, int(round(triangles / (2 * (nx - 1)))) + 1)
@@ -51,7 +51,7 @@ def seabed(triangles: int):
 
 def run_case(case: dict) -> dict:
     """Run one case in this process; return seconds, peak memory and the renderer's counters."""
-    from sonar_raster.raster import RasterRenderer, RasterSettings
+    from sonar_raster.render.gl.raster import RasterRenderer, RasterSettings
     from sonar_raster.sonar import Sonar
     from sonar_raster.trajectory import Trajectory
 
@@ -65,7 +65,7 @@ def run_case(case: dict) -> dict:
     t0 = time.perf_counter()
     counters: dict = {}
     if case["path"] == "streamed":
-        from sonar_raster.survey import render_survey
+        from sonar_raster.render.survey import render_survey
 
         with tempfile.TemporaryDirectory() as tmp:
             _, counters = render_survey(
@@ -81,7 +81,7 @@ def run_case(case: dict) -> dict:
                 image = r.render(scene, sonar, traj)
                 counters["warm_s"] = time.perf_counter() - t1
         if case["path"] == "in-memory":
-            from sonar_raster.io import write_image
+            from sonar_raster.io.images import write_image
 
             with tempfile.TemporaryDirectory() as tmp:
                 write_image(image, Path(tmp) / "s.exr")
@@ -249,9 +249,9 @@ def lod_table(quick: bool) -> list[dict]:
     The error is the image's relative L1 against the full-detail render (pixel by pixel, and of
     the along-track mean profile), beside the height error the coarse grid reports.
     """
-    from sonar_raster.raster import RasterRenderer
+    from sonar_raster.render.gl.raster import RasterRenderer
     from sonar_raster.scene import build_scene
-    from sonar_raster.seabed import level_of_detail, rough
+    from sonar_raster.scenes.seabed import level_of_detail, rough
     from sonar_raster.sonar import Sonar
     from sonar_raster.trajectory import Trajectory
 

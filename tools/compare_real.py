@@ -152,9 +152,9 @@ def simulate(real: RealPass, altitudes: np.ndarray, args: argparse.Namespace, be
     """Render the flat seabed along the real altitudes, then apply the effects."""
     water_ratio = water_column_ratio(real)
     from sonar_raster import Effects, Sonar, Trajectory, apply_effects, build_scene
-    from sonar_raster.raster import render_raster
+    from sonar_raster.render.gl.raster import render_raster
     from sonar_raster.scene import MeshPart
-    from sonar_raster.sediments import material_reflectivity
+    from sonar_raster.scenes.sediments import material_reflectivity
     from sonar_raster.sonar import BeamPattern
 
     n_pings = len(altitudes)
@@ -196,7 +196,7 @@ def simulate(real: RealPass, altitudes: np.ndarray, args: argparse.Namespace, be
 def noise_to_match(real: RealPass, sim, fx, water_ratio: float) -> float:
     """Receiver noise level (dB, before TVG) giving the simulation the real water column's
     level relative to the seabed: mean over water-column bins of N0 G(r) = ratio x seabed mean."""
-    from sonar_raster.effects import tvg_db
+    from sonar_raster.effects.chain import tvg_db
 
     n_bins = real.sides["port"].shape[1]
     r = (np.arange(n_bins) + 0.5) * real.range_bin
@@ -431,7 +431,7 @@ def write_png(path: Path, real: RealPass, sim) -> None:
     2nd ping and 4th bin (a small picture for the README)."""
     from PIL import Image
 
-    from sonar_raster.io import display_mapping
+    from sonar_raster.io.images import display_mapping
 
     def panel(sides):
         both = np.concatenate([sides["port"][:, ::-1], sides["starboard"]], axis=1)

@@ -81,7 +81,7 @@ def draw(dataset: Path, n: int, out: Path) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--dataset", type=Path, help="an existing dataset folder")
-    ap.add_argument("--config", default=str(ROOT / "scenes" / "dataset_default.toml"))
+    ap.add_argument("--config", default=str(ROOT / "sonar_raster/scenes/data/dataset_default.toml"))
     ap.add_argument("-n", type=int, default=4)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("-o", "--output", type=Path, default=ROOT / "docs" / "dataset_samples.png")
@@ -89,7 +89,7 @@ def main() -> None:
     if args.dataset is not None:
         draw(args.dataset, args.n, args.output)
         return
-    from sonar_raster.dataset import generate_dataset
+    from sonar_raster.dataset.generate import generate_dataset
 
     with tempfile.TemporaryDirectory(prefix="gallery-") as tmp:
         generate_dataset(args.config, tmp, count=args.n, seed=args.seed)

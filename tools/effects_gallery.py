@@ -73,9 +73,9 @@ def render_scene():
     import trimesh
 
     from sonar_raster import Sonar, Trajectory, build_scene
-    from sonar_raster.raster import render_raster
+    from sonar_raster.render.gl.raster import render_raster
     from sonar_raster.scene import MeshPart
-    from sonar_raster.sediments import material_reflectivity
+    from sonar_raster.scenes.sediments import material_reflectivity
     from sonar_raster.sonar import BeamPattern
 
     v = np.array([[-5.0, -5.0, 0.0], [40.0, -5.0, 0.0], [40.0, 30.0, 0.0], [-5.0, 30.0, 0.0]])
@@ -105,7 +105,7 @@ def render_scene():
 def save(path: Path, data: np.ndarray) -> None:
     from matplotlib import pyplot as plt
 
-    from sonar_raster.io import display_mapping
+    from sonar_raster.io.images import display_mapping
 
     codes, _ = display_mapping(data.astype(np.float64), 40.0)
     small = codes[::2, ::3]  # 120 x 200 pixels
@@ -116,7 +116,7 @@ def main(argv: list[str] | None = None) -> int:
     import matplotlib
 
     matplotlib.use("Agg")
-    from sonar_raster.effects import Effects, apply_effects
+    from sonar_raster.effects.chain import Effects, apply_effects
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "effects")

@@ -23,9 +23,24 @@ from pathlib import Path
 import numpy as np
 import OpenImageIO as oiio
 
-_VOLATILE = ("time", "timing", "version", "seconds", "created", "elapsed", "written", "committed", "pid")
-_SCENES = ("default", "barrel_on_sand", "cylinder_on_flat", "flat_calibration",
-           "truck_wheel_on_clay")
+_VOLATILE = (
+    "time",
+    "timing",
+    "version",
+    "seconds",
+    "created",
+    "elapsed",
+    "written",
+    "committed",
+    "pid",
+)
+_SCENES = (
+    "default",
+    "barrel_on_sand",
+    "cylinder_on_flat",
+    "flat_calibration",
+    "truck_wheel_on_clay",
+)
 _SHARED_XTF = Path(__file__).resolve().parents[2] / "shared" / "data" / "xtf"
 
 
@@ -38,8 +53,9 @@ def _cli(*args: str) -> None:
 
 def _scrub(doc: object) -> object:
     if isinstance(doc, dict):
-        return {k: _scrub(v) for k, v in doc.items()
-                if not any(word in k.lower() for word in _VOLATILE)}
+        return {
+            k: _scrub(v) for k, v in doc.items() if not any(word in k.lower() for word in _VOLATILE)
+        }
     if isinstance(doc, list):
         return [_scrub(v) for v in doc]
     if isinstance(doc, str) and doc.startswith("/"):
@@ -67,7 +83,8 @@ def _content(path: Path) -> bytes:
 def _hash_tree(root: Path) -> dict[str, str]:
     return {
         str(p.relative_to(root)): hashlib.sha256(_content(p)).hexdigest()[:16]
-        for p in sorted(root.rglob("*")) if p.is_file()
+        for p in sorted(root.rglob("*"))
+        if p.is_file()
     }
 
 
@@ -76,21 +93,82 @@ def run(out: Path) -> dict[str, str]:
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         for name in _SCENES:
-            _cli("render", name, "-o", str(work / f"{name}.exr"), "-o", str(work / f"{name}.png"),
-                 "--pings", "40")
-            _cli("render", name, "-o", str(work / f"{name}_ref.exr"), "--renderer", "reference",
-                 "--pings", "4")
-        _cli("render", "default", "-o", str(work / "speckled.exr"), "-o", str(work / "speckled.png"),
-             "--speckle", "exponential", "--tvg", "log", "--spreading", "--absorption",
-             "--along-beam-deg", "1", "--seed", "3", "--pings", "60")
-        _cli("render", "cylinder_on_flat", "-o", str(work / "coherent.exr"), "--model", "coherent",
-             "--pings", "2", "--spacing", "2", "--seed", "1")
+            _cli(
+                "render",
+                name,
+                "-o",
+                str(work / f"{name}.exr"),
+                "-o",
+                str(work / f"{name}.png"),
+                "--pings",
+                "40",
+            )
+            _cli(
+                "render",
+                name,
+                "-o",
+                str(work / f"{name}_ref.exr"),
+                "--renderer",
+                "reference",
+                "--pings",
+                "4",
+            )
+        _cli(
+            "render",
+            "default",
+            "-o",
+            str(work / "speckled.exr"),
+            "-o",
+            str(work / "speckled.png"),
+            "--speckle",
+            "exponential",
+            "--tvg",
+            "log",
+            "--spreading",
+            "--absorption",
+            "--along-beam-deg",
+            "1",
+            "--seed",
+            "3",
+            "--pings",
+            "60",
+        )
+        _cli(
+            "render",
+            "cylinder_on_flat",
+            "-o",
+            str(work / "coherent.exr"),
+            "--model",
+            "coherent",
+            "--pings",
+            "2",
+            "--spacing",
+            "2",
+            "--seed",
+            "1",
+        )
         _cli("render", "barrel_on_sand", "-o", str(work / "barrel.xtf"), "--pings", "10")
         _cli("dataset", "dataset_default", "-o", str(work / "dataset"), "-n", "2", "--seed", "5")
-        _cli("invert", str(work / "default.exr"), "-o", str(work / "inv_default"),
-             "--max-iter", "5", "--no-previews")
-        _cli("invert", str(work / "speckled.exr"), "-o", str(work / "inv_speckled"),
-             "--side", "starboard", "--max-iter", "5", "--no-previews")
+        _cli(
+            "invert",
+            str(work / "default.exr"),
+            "-o",
+            str(work / "inv_default"),
+            "--max-iter",
+            "5",
+            "--no-previews",
+        )
+        _cli(
+            "invert",
+            str(work / "speckled.exr"),
+            "-o",
+            str(work / "inv_speckled"),
+            "--side",
+            "starboard",
+            "--max-iter",
+            "5",
+            "--no-previews",
+        )
         xtf = sorted(_SHARED_XTF.glob("*.xtf"))
         if xtf:
             _cli("track", str(xtf[0]), "-o", str(work / "track.csv"))

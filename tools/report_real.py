@@ -7,7 +7,7 @@ Writes into DIR:
 
 - ``waterfall.png``: both channels, port on the left (range increasing to the left), in dB,
   with the tracked altitude;
-- ``altitude.png``: the bottom track (``sonar_raster.bottom.track_bottom``) against the file's
+- ``altitude.png``: the bottom track (``sonar_raster.track_bottom``) against the file's
   own altitude field;
 - ``inversion.png``: recovered elevation Z and reflectivity R of both sides (pings × ground
   range, port on the left), and the georeferenced elevation (``elevation.tif``, UTM);
@@ -20,7 +20,7 @@ Writes into DIR:
 
 Wreck height, two ways, on the object side (``--side``, starboard for the sample file):
 
-1. From the acoustic shadow (:mod:`sonar_raster.shadow`): per ping, a shadow directly behind
+1. From the acoustic shadow (:mod:`sonar_raster.invert.shadows`): per ping, a shadow directly behind
    a highlight gives ``H = Ls h / (R + Ls)`` (slant ranges, h the tracked altitude). This
    holds in the side-scan fan, which a pitch p tilts from the vertical, so the vertical
    height is that times ``cos p``. The longest run of pings with a shadow is the wreck; its
@@ -45,11 +45,11 @@ from pathlib import Path
 
 import numpy as np
 
-from sonar_raster._georef import georeference, geotiff_jobs, invert_xtf
-from sonar_raster._xtf_cli import draw_waterfall, parse_pings
+from sonar_raster.cli.track import draw_waterfall, parse_pings
 from sonar_raster.errors import SonarRasterError
-from sonar_raster.io import _commit
-from sonar_raster.shadow import find_shadows, object_pings
+from sonar_raster.invert.shadows import find_shadows, object_pings
+from sonar_raster.invert.xtf import georeference, geotiff_jobs, invert_xtf
+from sonar_raster.io.images import _commit
 
 SEABED_BEYOND_M = 2.0
 
@@ -192,7 +192,7 @@ def main(argv: list[str] | None = None) -> int:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from sonar_raster._invert_io import write_products
+    from sonar_raster.invert.write import write_products
 
     out = Path(args.output)
     out.mkdir(parents=True, exist_ok=True)

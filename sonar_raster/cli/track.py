@@ -1,0 +1,176 @@
+"""The XTF parts of the command line: ``sonar-raster track`` and ``invert FILE.xtf``."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from functools import partial
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..errors import SonarRasterError
+
+if TYPE_CHECKING:  # bottom imports scipy: keep it out of `sonar-raster --help`
+    from ..invert.bottom import BottomTrack
+
+TRACK_SUFFIXES = (".png", ".csv")
+
+
+def parse_pings(text: str | None) -> slice | None:
+    """``"A:B"`` (either end may be empty) as a slice of ping indices; None for None."""
+    if text is None:
+        return None
+    parts = text.split(":")
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        start, stop = (int(p) if p.strip() else None for p in parts)
+    except ValueError:
+        raise SonarRasterError(f"--pings {text!r}: use FIRST:STOP, e.g. 100:200") from None
+    if (start is not None and start < 0) or (stop is not None and stop < 0):
+        raise SonarRasterError(f"--pings {text!r}: ping indices are >= 0")
+    return slice(start, stop)
+
+
+def add_track_parser(sub) -> None:
+    """Add the ``track`` subcommand to an argparse subparsers object."""
+    track = sub.add_parser(
+        "track",
+        help="bottom-track an XTF file: altitude per ping from the first bottom return",
+        description="Track the first bottom return of each ping in FILE.xtf (both sides), "
+        "print a summary, and write the altitude per ping as a plot (.png, needs matplotlib) "
+        "or a table (.csv).",
+    )
+    track.add_argument("file", help="XTF file")
+    track.add_argument("-o", "--output", metavar="OUT", help="output .png or .csv")
+    track.add_argument("--pings", metavar="A:B", help="ping range (indices, stop excluded)")
+    track.add_argument("-q", "--quiet", action="store_true", help="no summary")
+
+
+def track_command(args: argparse.Namespace) -> int:
+    """Run ``sonar-raster track``."""
+    from ..io.xtf import read_xtf
+
+    out = Path(args.output) if args.output else None
+    if out is not None:
+        if out.suffix.lower() not in TRACK_SUFFIXES:
+            raise SonarRasterError(f"output {out}: unknown extension; use .png or .csv")
+        if not out.parent.is_dir():
+            raise SonarRasterError(f"cannot write {out}: directory {out.parent} does not exist")
+    image, nav = read_xtf(args.file, parse_pings(args.pings))
+    from ..invert.bottom import track_bottom
+
+    track = track_bottom(image.sides, image.sonar.range_bin)
+    if not args.quiet:
+        for line in summary_lines(track, nav.altitude, image.sonar.range_bin):
+            print(line)
+    if out is not None:
+        written = write_track(out, track, nav.altitude, image)
+        if not args.quiet:
+            print(f"wrote {written}")
+    return 0
+
+
+def summary_lines(track: BottomTrack, recorded: np.ndarray, range_bin: float) -> list[str]:
+    """Printable summary of a track, compared with the file's own altitude where it has one."""
+    n = len(track.altitude)
+    a = track.altitude
+    lines = [
+        f"{n} pings, {int(track.valid.sum())} with a clear bottom return "
+        f"({100.0 * track.valid.mean():.1f} %); range bin {range_bin * 100:.2f} cm",
+        f"tracked altitude: min {a.min():.2f} m, median {np.median(a):.2f} m, max {a.max():.2f} m",
+    ]
+    ok = np.isfinite(recorded)
+    if ok.any():
+        d = a[ok] - recorded[ok]
+        lines.append(
+            f"file altitude (SensorPrimaryAltitude) on {int(ok.sum())} pings: tracked - file "
+            f"median {np.median(d):+.2f} m, 5-95 % {np.percentile(d, 5):+.2f} to "
+            f"{np.percentile(d, 95):+.2f} m"
+        )
+    else:
+        lines.append("the file records no altitude (0 on every ping)")
+    return lines
+
+
+def write_track(out: Path, track: BottomTrack, recorded: np.ndarray, image) -> Path:
+    """Write the track as .csv, or as .png when matplotlib is installed (else .csv beside it)."""
+    from ..io.images import _commit
+
+    if out.suffix.lower() == ".png":
+        try:
+            import matplotlib  # noqa: F401
+        except ImportError:
+            csv = out.with_suffix(".csv")
+            print(f"matplotlib is not installed: writing {csv} instead of {out}")
+            out = csv
+    if out.suffix.lower() == ".csv":
+        _commit([(out, partial(_write_csv, track=track, recorded=recorded))])
+    else:
+        _commit([(out, partial(_plot_track, track=track, recorded=recorded, image=image))])
+    return out
+
+
+def _write_csv(tmp: Path, track: BottomTrack, recorded: np.ndarray) -> None:
+    with open(tmp, "x", encoding="utf-8") as fh:
+        fh.write("ping,altitude_m,valid,raw_m,contrast_db,file_altitude_m\n")
+        for i in range(len(track.altitude)):
+            fh.write(
+                f"{i},{track.altitude[i]:.4f},{int(track.valid[i])},{_num(track.raw[i])},"
+                f"{_num(track.contrast_db[i])},{_num(recorded[i])}\n"
+            )
+
+
+def _num(value: float) -> str:
+    return f"{value:.4f}" if math.isfinite(value) else ""
+
+
+def _plot_track(tmp: Path, track: BottomTrack, recorded: np.ndarray, image) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (wf, ax) = plt.subplots(1, 2, figsize=(12, 6), width_ratios=(1.4, 1))
+    try:
+        draw_waterfall(wf, image, track.altitude)
+        pings = np.arange(len(track.altitude))
+        ax.plot(pings, track.altitude, "k-", lw=1.2, label="tracked (first return)")
+        bad = ~track.valid
+        ax.plot(pings[bad], track.altitude[bad], "rx", ms=4, label="no clear return")
+        if np.isfinite(recorded).any():
+            ax.plot(pings, recorded, "c-", lw=0.8, label="file (SensorPrimaryAltitude)")
+        ax.set_xlabel("ping")
+        ax.set_ylabel("altitude, m")
+        ax.legend(loc="best", fontsize=8)
+        ax.grid(alpha=0.3)
+        fig.tight_layout()
+        fig.savefig(tmp, format="png", dpi=110)
+    finally:
+        plt.close(fig)
+
+
+def draw_waterfall(ax, image, altitude: np.ndarray | None = None) -> None:
+    """Waterfall on a matplotlib axis: port on the left (range increasing to the left), dB."""
+    display = image.display().astype(np.float64)
+    positive = display[display > 0]
+    floor = float(np.percentile(positive, 1)) if positive.size else 1.0
+    db = 10.0 * np.log10(np.maximum(display, floor))
+    top = float(np.percentile(db, 99.5))
+    reach = image.sonar.range_bin * image.shape[1]
+    left = -reach if "port" in image.sides else 0.0
+    right = reach if "starboard" in image.sides else 0.0
+    pings = image.shape[0]
+    ax.imshow(
+        db, cmap="copper", aspect="auto", vmin=top - 40.0, vmax=top,
+        extent=(left, right, pings - 0.5, -0.5), interpolation="nearest",
+    )  # fmt: skip
+    if altitude is not None:
+        rows = np.arange(pings)
+        for sign, side in ((-1.0, "port"), (1.0, "starboard")):
+            if side in image.sides:
+                ax.plot(sign * altitude, rows, "c-", lw=0.6)
+    ax.set_xlabel("slant range, m (port < 0 < starboard)")
+    ax.set_ylabel("ping")

@@ -1,0 +1,213 @@
+"""Files of the ``invert`` command: the input image and the R, Φ, Z products."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from functools import partial
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SonarRasterError
+from .solver import Inversion
+
+INPUT_SUFFIXES = (".npy", ".exr", ".png")
+
+
+def read_side(path: Path, side: str | None) -> tuple[np.ndarray, str, dict]:
+    """One side of an image file as float64 (pings, bins), the side's name and header fields.
+
+    ``.npy`` and ``.png`` hold one side (PNG grey levels are taken as linear intensity);
+    ``.exr`` is the renderer's output, its ``sonar:range_bin_m`` given back in the header dict.
+    """
+    suffix = path.suffix.lower()
+    if suffix not in INPUT_SUFFIXES:
+        raise SonarRasterError(f"{path}: unknown image type; use .npy, .exr or .png")
+    if not path.is_file():
+        raise SonarRasterError(f"{path}: no such file")
+    if suffix == ".exr":
+        from ..io.images import read_exr
+
+        sides, attrs = read_exr(path)
+        name = side or ("starboard" if "starboard" in sides else next(iter(sides)))
+        if name not in sides:
+            raise SonarRasterError(f"{path}: no {name} channel (has {', '.join(sides)})")
+        return sides[name].astype(np.float64), name, attrs
+    if suffix == ".npy":
+        try:
+            data = np.load(path, allow_pickle=False)
+        except (OSError, ValueError) as exc:
+            raise SonarRasterError(f"cannot read {path}: {exc}") from None
+    else:
+        data = _read_png(path)
+    if data.ndim != 2:
+        raise SonarRasterError(f"{path}: expected a 2-D image (pings x bins), got {data.shape}")
+    return np.asarray(data, dtype=np.float64), side or "starboard", {}
+
+
+def _read_png(path: Path) -> np.ndarray:
+    from ..io.images import read_pixels
+
+    return read_pixels(path)[0][:, :, 0].astype(np.float64)
+
+
+def _write_map(tmp: Path, values: np.ndarray, name: str) -> None:
+    import OpenImageIO as oiio
+
+    from ..io.images import _write_oiio
+
+    pixels = np.ascontiguousarray(values, dtype=np.float32)[:, :, np.newaxis]
+    spec = oiio.ImageSpec(pixels.shape[1], pixels.shape[0], 1, oiio.FLOAT)
+    spec.channelnames = (name,)
+    spec.attribute("compression", "zip")
+    _write_oiio(tmp, pixels, spec)
+
+
+def summary(inv: Inversion, side: str, range_bin: float, extra: dict | None = None) -> dict:
+    """The ``inversion.json`` document (``extra`` entries are added at the top level)."""
+    doc = {
+        "side": side,
+        "range_bin_m": range_bin,
+        "ground_axis": {
+            "first_centre_m": float(inv.x[0]),
+            "spacing_m": float(inv.x[1] - inv.x[0]),
+            "cells": len(inv.x),
+        },
+        "ping_spacing_m": float(inv.ping_spacing) if np.isfinite(inv.ping_spacing) else None,
+        "altitude_m": [float(a) for a in inv.altitude],
+        "energy_per_iteration": [[float(e) for e in level] for level in inv.energies],
+        "iterations": inv.iterations,
+        "iterations_per_level": [len(level) - 1 for level in inv.energies],
+        "levels": [_level_doc(run) for run in inv.runs],
+        "settings": dict(inv.settings),
+        "elevation": "metres relative to the transducer, negative below; NaN = no estimate",
+    }
+    doc.update(extra or {})
+    return doc
+
+
+def _level_doc(run: dict) -> dict:
+    starts = [{**s, "energy": float(s["energy"])} for s in run["starts"]]
+    return {**run, "starts": starts}
+
+
+PRODUCTS = {
+    "elevation.exr": "Z, metres relative to the transducer, negative below",
+    "reflectivity.exr": "R",
+    "beam.exr": "Φ per cell (intensity per metre of ground range per unit R)",
+    "ground.exr": "the image in ground range at the recovered Z, intensity per metre of ground "
+    "range: I(ρ)/Δr · x/ρ with ρ = sqrt(x² + Z²)",
+    "even.exr": "evenly illuminated ground-range image (seed Eq. 22): ground / (Φ cos⟨θ⟩), "
+    "cos⟨θ⟩ = −Z / sqrt(x² + Z²); equals R on a level seabed",
+    "beam_profile.json": "Φ against depression angle, for calibrated mode (--beam)",
+    "seabed.glb": "textured mesh: X across track (+ starboard), Y along track, Z elevation, metres",
+    "seabed.ply": "the same mesh with vertex colours",
+}
+
+
+def write_products(
+    inv: Inversion,
+    directory: Path,
+    side: str,
+    range_bin: float,
+    *,
+    mesh: bool = True,
+    previews: bool = True,
+    preview_size: tuple[int, int] = (640, 480),
+    backend: str | None = None,
+) -> list[Path]:
+    """Write the inversion's products into ``directory`` atomically (temp names, then renames).
+
+    Always ``elevation.exr``, ``reflectivity.exr``, ``beam.exr``, ``beam_profile.json`` and
+    ``inversion.json``; ``ground.exr`` and ``even.exr`` when the result carries them; with
+    ``mesh`` ``seabed.glb`` and ``seabed.ply``; with ``previews`` four
+    ``preview_az{045,135,225,315}.png`` renders of the mesh (``preview_size`` = width, height
+    in pixels; GL ``backend`` as :func:`.gl.create_context`). Every file is
+    made before any is renamed into place, so a failure leaves no product behind.
+    """
+    from ..io.images import _commit, _write_json
+
+    maps = {"elevation": inv.elevation, "reflectivity": inv.reflectivity, "beam": inv.beam}
+    if inv.reprojected is not None:
+        maps["ground"] = inv.reprojected
+    if inv.even is not None:
+        maps["even"] = inv.even
+    jobs: list[tuple[Path, Callable[[Path], None]]] = [
+        (directory / f"{k}.exr", partial(_write_map, values=v, name=k)) for k, v in maps.items()
+    ]
+    jobs.append((directory / "beam_profile.json", inv.profile.save))
+    extra: dict = {}
+    if mesh or previews:
+        extra.update(_mesh_jobs(inv, directory, side, jobs, mesh, previews, preview_size, backend))
+    extra["products"] = {
+        path.name: PRODUCTS.get(path.name, "preview render of seabed.glb") for path, _ in jobs
+    }
+    jobs.append(
+        (
+            directory / "inversion.json",
+            partial(_write_json, doc=summary(inv, side, range_bin, extra)),
+        )
+    )
+    directory.mkdir(parents=True, exist_ok=True)
+    return _commit(jobs)
+
+
+def _mesh_jobs(inv, directory, side, jobs, mesh, previews, size, backend) -> dict:
+    """Append the mesh and preview writers to ``jobs``; return their inversion.json entries."""
+    from ..meshio.export import export, seabed_mesh
+    from ..render.gl.preview import AZIMUTHS, ELEVATION, exaggeration, render_previews
+
+    texture = inv.even if inv.even is not None else inv.reflectivity
+    dy = inv.ping_spacing if np.isfinite(inv.ping_spacing) else float(inv.x[1] - inv.x[0])
+    doc: dict = {"texture": "even.exr" if inv.even is not None else "reflectivity.exr"}
+    coloured = seabed_mesh(inv.x, inv.elevation, texture, dy, side, textured=False)
+    doc["mesh"] = {"vertices": len(coloured.vertices), "faces": len(coloured.faces)}
+    if mesh:
+        textured = seabed_mesh(inv.x, inv.elevation, texture, dy, side, textured=True)
+        for name, mesh_obj, kind in (
+            ("seabed.glb", textured, "glb"),
+            ("seabed.ply", coloured, "ply"),
+        ):
+            jobs.append((directory / name, partial(_write_bytes, data=export(mesh_obj, kind))))
+    if previews:
+        images = render_previews(coloured, size, backend)
+        for az, image in zip(AZIMUTHS, images, strict=True):
+            jobs.append(
+                (directory / f"preview_az{az:03.0f}.png", partial(_write_png, pixels=image))
+            )
+        doc["previews"] = {
+            "renderer": "moderngl (EGL, else OSMesa, via sonar_raster.render.gl.context)",
+            "azimuth_deg": list(AZIMUTHS),
+            "elevation_deg": ELEVATION,
+            "vertical_exaggeration": exaggeration(np.asarray(coloured.vertices)),
+            "size_px": list(size),
+        }
+    return doc
+
+
+def _write_bytes(tmp: Path, data: bytes) -> None:
+    tmp.write_bytes(data)
+
+
+def _write_png(tmp: Path, pixels: np.ndarray) -> None:
+    import OpenImageIO as oiio
+
+    from ..io.images import _write_oiio
+
+    spec = oiio.ImageSpec(pixels.shape[1], pixels.shape[0], pixels.shape[2], oiio.UINT8)
+    _write_oiio(tmp, np.ascontiguousarray(pixels, dtype=np.uint8), spec)
+
+
+def energy_summary(inv: Inversion) -> list[str]:
+    """One line per level: iterations and E of every start, which start was kept, E trend."""
+    lines = []
+    for k, (energies, run) in enumerate(zip(inv.energies, inv.runs, strict=False)):
+        starts = ", ".join(
+            f"{s['start']}: {s['iterations']} it ({s['stopped']}), E {s['energy']:.4g}"
+            for s in run["starts"]
+        )
+        lines.append(
+            f"level {k + 1} (1/{run['factor']} res.): E {energies[0]:.4g} -> {energies[-1]:.4g}; "
+            f"kept {run['kept']}; {starts}"
+        )
+    return lines

@@ -1,0 +1,367 @@
+"""Inversion of XTF files and georeferenced products (GeoTIFF) from their navigation.
+
+Both sides are inverted separately (:func:`sonar_raster.invert.solver.invert`) with the altitude of
+:func:`sonar_raster.invert.bottom.track_bottom`, on intensity = sample² (XTF side-scan samples are
+envelope amplitudes) with the leading transmit-pulse bins set to 0; each side's products
+go to ``DIR/port`` and ``DIR/starboard`` (:func:`sonar_raster.invert.write.write_products`).
+With navigation, the maps of both sides are placed on the ground and gridded into one raster
+each:
+
+- The side-scan fan is perpendicular to the vehicle's axis, so a pitch p (nose up > 0)
+  tilts it: the inversion's Z (negative below the transducer) runs along the fan's "down",
+  ``sin p`` along track and ``−cos p`` vertical, and its altitude (the first return) is
+  ``h / cos p``. Ground cell j of ping i on side s (s = +1 starboard, −1 port) lies at
+  ``p_i + s x_j u_i − Z_ij sin(p_i) a_i`` and at height ``Z_ij cos(p_i)`` below the
+  transducer: ``p_i`` the ping's position (easting, northing), ``u_i = (cos h, −sin h)``
+  the starboard unit vector and ``a_i = (sin h, cos h)`` the along-track one for compass
+  heading h, ``x_j`` the ground range. With the nose down the seabed seen lies behind. (On
+  the OpenSidescan sample, pitched −22° for half the file, the tracked first return times
+  cos p is 0.60 m above the file's altitude in the median, against 0.73 m without.)
+- Between consecutive pings the cells are interpolated linearly (positions and values) so
+  the raster has no along-track gaps; each pixel takes the mean of the samples inside it.
+- CRS: files in degrees are projected to the UTM zone of their first fix (WGS 84, EPSG
+  326xx/327xx, via rasterio/PROJ); files in metres keep their coordinates with no CRS (XTF
+  does not say which projection).
+- ``elevation.tif`` is the seabed elevation relative to the sea surface, ``Z cos p −
+  depth`` (metres, negative down), when the file records the sensor depth, else ``Z cos p``
+  relative to the transducer; ``reflectivity.tif`` is R; ``mosaic.tif`` the ground-range
+  image (intensity per metre of ground range over a flat seabed at the tracked altitude).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import partial
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SonarRasterError
+from ..image import SonarImage
+from ..io.xtf import XtfNavigation, read_xtf
+from .bottom import BottomTrack, track_bottom
+
+GEOTIFFS = {
+    "elevation.tif": "seabed elevation, metres (relative to the sea surface when the file "
+    "records the sensor depth, else to the transducer), negative down",
+    "reflectivity.tif": "recovered reflectivity R",
+    "mosaic.tif": "ground-range image of both sides (flat seabed at the tracked altitude)",
+}
+
+
+@dataclass(frozen=True)
+class XtfInversion:
+    """An XTF file's image, navigation, bottom track and per-side inversions."""
+
+    image: SonarImage
+    navigation: XtfNavigation
+    track: BottomTrack
+    sides: dict  # side name -> sonar_raster.invert.solver.Inversion
+    blanking: int
+
+
+@dataclass(frozen=True)
+class Raster:
+    """Gridded maps, north up: ``layers`` name -> (rows, cols) float32, NaN = no data.
+
+    ``west``/``north`` are the outer corner of pixel (0, 0), ``pixel`` the pixel size in
+    metres, ``crs`` an "EPSG:nnnn" string or None.
+    """
+
+    layers: dict[str, np.ndarray]
+    west: float
+    north: float
+    pixel: float
+    crs: str | None
+
+    @property
+    def transform(self):
+        """The rasterio affine transform (built directly: ``from_origin`` warns in affine 3)."""
+        from affine import Affine
+
+        return Affine(self.pixel, 0.0, self.west, 0.0, -self.pixel, self.north)
+
+
+def invert_xtf(
+    path: str | Path,
+    *,
+    pings: slice | None = None,
+    sides: tuple[str, ...] | None = None,
+    altitude: float | None = None,
+    ping_spacing: float | None = None,
+    amplitude: bool = True,
+    progress: bool = False,
+    **options,
+) -> XtfInversion:
+    """Read an XTF file, track the bottom and invert each side.
+
+    Parameters
+    ----------
+    path : str or Path
+        The XTF file.
+    pings : slice, optional
+        Ping range to invert.
+    sides : tuple of str, optional
+        Sides to invert (default: every side in the file).
+    altitude : float, optional
+        Fixed altitude in metres instead of the bottom track.
+    ping_spacing : float, optional
+        Along-track spacing, metres (default: the mean spacing of the navigation).
+    amplitude : bool
+        The samples are envelope amplitudes, so the intensity inverted is their square (true
+        of the OpenSidescan sample: its samples have the speckle contrast of a Rayleigh
+        amplitude, 0.48, and their squares that of an intensity, 1.1). False inverts the
+        samples as they are.
+    progress : bool
+        Progress bars.
+    **options
+        Passed to :func:`sonar_raster.invert.solver.invert` (``max_iter``, ``levels``, ``tol``,
+        ``beam``).
+
+    Returns
+    -------
+    XtfInversion
+    """
+    from .bottom import _blanking
+    from .solver import invert
+
+    image, nav = read_xtf(path, pings)
+    dr = image.sonar.range_bin
+    track = track_bottom(image.sides, dr)
+    alt = np.full(image.shape[0], float(altitude)) if altitude else track.altitude
+    if ping_spacing is None and nav.valid.sum() >= 2:
+        spacing = nav.along_track_spacing()
+        ping_spacing = spacing if math.isfinite(spacing) else None
+    chosen = sides or tuple(image.sides)
+    missing = [s for s in chosen if s not in image.sides]
+    if missing:
+        raise SonarRasterError(f"{path} has no {', '.join(missing)} channel")
+    results, blank = {}, 0
+    for side in chosen:
+        slant = image.sides[side].astype(np.float64)
+        if amplitude:
+            slant *= slant
+        blank = max(blank, _blanking(slant))
+        slant[:, :blank] = 0.0  # the transmit pulse is not seabed
+        results[side] = invert(
+            slant, dr, altitude=alt, ping_spacing=ping_spacing, progress=progress, **options
+        )
+    return XtfInversion(image, nav, track, results, blank)
+
+
+def ground_positions(
+    east: np.ndarray,
+    north: np.ndarray,
+    heading: np.ndarray,
+    pitch: np.ndarray,
+    x: np.ndarray,
+    elevation: np.ndarray,
+    side: str,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Easting and northing of each ground cell, each shape (pings, cells), metres.
+
+    ``east``, ``north``, ``heading`` (compass, radians), ``pitch`` (nose up, radians) have
+    shape (pings,); ``x`` (cells,) is the ground range; ``elevation`` (pings, cells) the
+    recovered Z relative to the transducer along the fan's "down" (NaN is taken as the
+    ping's median).
+    """
+    s = 1.0 if side == "starboard" else -1.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN ping gives NaN, then 0
+        median = np.nanmedian(elevation, axis=1)[:, None]
+    z = np.nan_to_num(np.where(np.isfinite(elevation), elevation, median), nan=0.0)
+    along = -z * np.sin(pitch)[:, None]
+    h = heading[:, None]
+    e = east[:, None] + s * x[None, :] * np.cos(h) + along * np.sin(h)
+    n = north[:, None] - s * x[None, :] * np.sin(h) + along * np.cos(h)
+    return e, n
+
+
+def _densify(a: np.ndarray, factor: int) -> np.ndarray:
+    """Linear interpolation between consecutive rows, ``factor`` rows per interval."""
+    if factor <= 1 or len(a) < 2:
+        return a
+    t = (np.arange(factor) / factor)[None, :, None]
+    mid = a[:-1, None, :] * (1.0 - t) + a[1:, None, :] * t
+    return np.concatenate([mid.reshape(-1, a.shape[1]), a[-1:]], axis=0)
+
+
+def grid(
+    samples: list[tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]],
+    pixel: float,
+    crs: str | None,
+    along_factor: int = 1,
+) -> Raster:
+    """Mean of the samples falling in each pixel of a north-up raster.
+
+    Parameters
+    ----------
+    samples : list of (east, north, layers)
+        Per side: positions, each (pings, cells), and layer name -> values (pings, cells).
+    pixel : float
+        Pixel size, metres.
+    crs : str or None
+        CRS of the positions.
+    along_factor : int
+        Samples per ping interval after linear interpolation along track.
+    """
+    names = list(samples[0][2])
+    es: list[np.ndarray] = []
+    ns: list[np.ndarray] = []
+    vals: dict[str, list[np.ndarray]] = {k: [] for k in names}
+    for e, n, layers in samples:
+        es.append(_densify(e, along_factor).ravel())
+        ns.append(_densify(n, along_factor).ravel())
+        for k in names:
+            vals[k].append(_densify(layers[k], along_factor).ravel())
+    east, north = np.concatenate(es), np.concatenate(ns)
+    west, top = math.floor(east.min() / pixel) * pixel, math.ceil(north.max() / pixel) * pixel
+    cols = int((east.max() - west) // pixel) + 1
+    rows = int((top - north.min()) // pixel) + 1
+    if rows * cols > 200_000_000:
+        raise SonarRasterError(f"a {rows} x {cols} raster is too large; use a larger pixel")
+    flat = ((top - north) // pixel).astype(np.int64) * cols + ((east - west) // pixel).astype(
+        np.int64
+    )
+    layers = {}
+    for k in names:
+        v = np.concatenate(vals[k])
+        ok = np.isfinite(v)
+        total = np.bincount(flat[ok], weights=v[ok], minlength=rows * cols)
+        count = np.bincount(flat[ok], minlength=rows * cols)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean = np.where(count > 0, total / np.maximum(count, 1), np.nan)
+        layers[k] = mean.reshape(rows, cols).astype(np.float32)
+    return Raster(layers, west, top, pixel, crs)
+
+
+def georeference(result: XtfInversion, pixel: float | None = None) -> Raster:
+    """Grid the inversion's elevation, reflectivity and ground-range image on the ground.
+
+    Parameters
+    ----------
+    result : XtfInversion
+    pixel : float, optional
+        Pixel size in metres (default: the larger of the ground cell and half the ping
+        spacing).
+
+    Raises
+    ------
+    SonarRasterError
+        When the file has no navigation.
+    """
+    nav = result.navigation
+    if not nav.valid.any():
+        raise SonarRasterError("the file has no navigation: no GeoTIFF can be placed")
+    east, north = nav.projected()
+    heading = nav.filled_heading()
+    idx = np.flatnonzero(nav.valid)
+    k = np.arange(len(nav.valid))
+    pitch = np.interp(k, idx, nav.pitch[nav.valid])
+    depth = np.interp(k, idx, nav.depth[nav.valid])
+    has_depth = bool(np.any(depth > 0))
+    spacing = nav.along_track_spacing()
+    first = next(iter(result.sides.values()))
+    dx = float(first.x[1] - first.x[0])
+    px = float(pixel or max(dx, 0.5 * spacing if math.isfinite(spacing) else dx))
+    if nav.valid.sum() >= 2:  # samples at most half a pixel apart along track
+        step = float(np.max(np.hypot(np.diff(east), np.diff(north))))
+        factor = max(1, int(math.ceil(2.0 * step / px)))
+    else:
+        factor = 1
+    samples = []
+    for side, inv in result.sides.items():
+        e, n = ground_positions(east, north, heading, pitch, inv.x, inv.elevation, side)
+        z = inv.elevation * np.cos(pitch)[:, None] - (depth[:, None] if has_depth else 0.0)
+        layers = {"elevation": z, "reflectivity": inv.reflectivity, "mosaic": inv.ground}
+        samples.append((e, n, layers))
+    return grid(samples, px, nav.crs, factor)
+
+
+def _write_geotiff(tmp: Path, values: np.ndarray, raster: Raster, description: str) -> None:
+    import rasterio
+
+    profile = {
+        "driver": "GTiff",
+        "height": values.shape[0],
+        "width": values.shape[1],
+        "count": 1,
+        "dtype": "float32",
+        "transform": raster.transform,
+        "nodata": float("nan"),
+        "compress": "deflate",
+    }
+    if raster.crs:
+        profile["crs"] = raster.crs
+    with rasterio.open(tmp, "w", **profile) as dst:
+        dst.write(values, 1)
+        dst.update_tags(description=description, pixel_size_m=str(raster.pixel))
+        if not raster.crs:
+            dst.update_tags(crs="unknown: the XTF file's projected coordinates, metres")
+
+
+def geotiff_jobs(directory: Path, raster: Raster) -> list[tuple[Path, Callable[[Path], None]]]:
+    """(path, writer) jobs for :func:`sonar_raster.io.images._commit`, one GeoTIFF per layer."""
+    jobs: list[tuple[Path, Callable[[Path], None]]] = []
+    for name, description in GEOTIFFS.items():
+        layer = raster.layers[name.removesuffix(".tif")]
+        jobs.append((directory / name, partial(_write_geotiff, values=layer, raster=raster,
+                                               description=description)))  # fmt: skip
+    return jobs
+
+
+def invert_xtf_command(args: argparse.Namespace) -> int:
+    """``sonar-raster invert FILE.xtf -o DIR``: both sides, bottom-tracked, with GeoTIFFs."""
+    from ..cli.track import _write_csv, parse_pings, summary_lines
+    from ..io.images import _commit
+    from .solver import BeamProfile
+    from .write import energy_summary, write_products
+
+    out = Path(args.output)
+    options = {"max_iter": args.max_iter, "looks": getattr(args, "looks", "auto")}
+    for name in ("levels", "tol", "flat_prior", "relief_std", "slope_std"):
+        if getattr(args, name, None) is not None:
+            options[name] = getattr(args, name)
+    if getattr(args, "beam", None):
+        options["beam"] = BeamProfile.load(args.beam)
+    result = invert_xtf(
+        args.image,
+        pings=parse_pings(getattr(args, "pings", None)),
+        sides=(args.side,) if args.side else None,
+        altitude=args.altitude,
+        ping_spacing=args.ping_spacing,
+        progress=not args.quiet,
+        **options,
+    )
+    image, nav = result.image, result.navigation
+    raster = georeference(result) if nav.valid.any() else None
+    csv = partial(_write_csv, track=result.track, recorded=nav.altitude)
+    extra: list[tuple[Path, Callable[[Path], None]]] = [(out / "bottom_track.csv", csv)]
+    if raster is not None:
+        extra += geotiff_jobs(out, raster)
+    written = []
+    for side, inv in result.sides.items():
+        written += write_products(
+            inv, out / side, side, image.sonar.range_bin,
+            mesh=not getattr(args, "no_mesh", False),
+            previews=not getattr(args, "no_previews", False),
+        )  # fmt: skip
+    written += _commit(extra)
+    if not args.quiet:
+        for line in summary_lines(result.track, nav.altitude, image.sonar.range_bin):
+            print(line)
+        for side, inv in result.sides.items():
+            for line in energy_summary(inv):
+                print(f"{side}: {line}")
+        if raster is None:
+            print("no navigation in the file: no GeoTIFF written")
+        else:
+            print(f"GeoTIFFs: CRS {raster.crs or 'none (file coordinates)'}, pixel "
+                  f"{raster.pixel:.3f} m")  # fmt: skip
+        for path in written:
+            print(f"wrote {path}")
+    return 0

@@ -1,0 +1,449 @@
+"""Writers and readers: linear EXR, display PNG and a JSON sidecar, all written atomically.
+
+Every output of one ``write_image`` call is first written to a hidden temporary file in the
+target directory (``.<name>.<token><suffix>``) and only renamed into place with ``os.replace``
+once all of them are complete, so a failure never leaves a half-written file behind and never
+replaces an existing file with a broken one.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import secrets
+from collections.abc import Callable
+from datetime import datetime, timezone
+from importlib import metadata as importlib_metadata
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import OpenImageIO as oiio
+
+from ..errors import SonarRasterError
+from ..image import SonarImage
+from ..sonar import SIDES
+
+UNITS = "m^2 (beam-weighted backscattering area, K=1)"
+LAYOUT = "rows=pings, columns=slant-range bins near->far"
+DISPLAY_LAYOUT = (
+    "rows=pings; columns=port bins far->near, then starboard bins near->far (missing side left out)"
+)
+MAPPING_FORMULA = (
+    "code = round(max_code * clip((10*log10(I/ref) + DR) / DR, 0, 1)), I == 0 -> 0; "
+    "inverse for code > 0: I = ref * 10**(DR/10 * (code/max_code - 1))"
+)
+SUPPORTED = (".exr", ".png")
+_MAX_KEY = 79  # PNG text keywords are truncated beyond 79 characters
+_MAX_VALUE = 1024  # longer metadata entries go to the JSON sidecar only
+
+
+def display_mapping(
+    intensity: np.ndarray, dynamic_range_db: float, ref: float | None = None
+) -> tuple[np.ndarray, float]:
+    """Map linear intensity to display codes in [0, 1] on a decibel scale.
+
+    ``code = clip((10 log10(I / ref) + DR) / DR, 0, 1)``, so ``I = ref`` maps to 1,
+    ``I = ref * 10**(-DR / 10)`` and anything weaker maps to 0, and exact zeros (shadow, water
+    column) map to 0.
+
+    Parameters
+    ----------
+    intensity : ndarray, any shape
+        Linear intensity, m², finite and >= 0.
+    dynamic_range_db : float
+        DR, the decibel span shown, > 0.
+    ref : float, optional
+        Reference level (m²) shown at full scale. Default: the 99.5th percentile of the
+        nonzero intensities (linear interpolation), or 1.0 when every value is zero.
+
+    Returns
+    -------
+    codes : ndarray, same shape as ``intensity``, float64
+        Display values in [0, 1]; multiply by the largest code value and round to quantise.
+    ref : float
+        The reference level used.
+    """
+    values: np.ndarray = np.asarray(intensity, dtype=np.float64)
+    dr_ok = isinstance(dynamic_range_db, (int, float)) and math.isfinite(dynamic_range_db)
+    if not (dr_ok and dynamic_range_db > 0):
+        raise SonarRasterError(
+            f"dynamic range must be a positive number of dB, got {dynamic_range_db!r}"
+        )
+    if not np.all(np.isfinite(values)):
+        raise SonarRasterError("intensity has NaN or infinite values; cannot map it for display")
+    if np.any(values < 0):
+        raise SonarRasterError("intensity has negative values; display mapping needs I >= 0")
+    positive = values > 0
+    if ref is None:
+        ref = float(np.percentile(values[positive], 99.5)) if positive.any() else 1.0
+    if not (math.isfinite(ref) and ref > 0):
+        raise SonarRasterError(f"display reference level must be a positive number, got {ref!r}")
+    codes = np.zeros_like(values)
+    decibels = 10.0 * np.log10(values[positive] / ref)
+    codes[positive] = np.clip((decibels + dynamic_range_db) / dynamic_range_db, 0.0, 1.0)
+    return codes, float(ref)
+
+
+#: Bounds of the automatic display range, dB.
+AUTO_RANGE_DB = (6.0, 60.0)
+
+
+def auto_dynamic_range(intensity: np.ndarray, ref: float | None = None) -> float:
+    """Display range that spans the image: from its 1st percentile of nonzero values to ``ref``.
+
+    Raw images carry no spreading loss or gain, so their span is often only 10–20 dB; a fixed
+    60 dB window would show them washed out. The result is rounded to 0.1 dB and bounded by
+    :data:`AUTO_RANGE_DB`; ``ref`` defaults as in :func:`display_mapping`.
+    """
+    values = np.asarray(intensity, dtype=np.float64)
+    positive = values[values > 0]
+    if positive.size == 0:
+        return AUTO_RANGE_DB[1]
+    top = float(np.percentile(positive, 99.5)) if ref is None else ref
+    low = float(np.percentile(positive, 1.0))
+    span = 10.0 * math.log10(top / low) if low > 0 and top > low else AUTO_RANGE_DB[0]
+    return round(min(max(span, AUTO_RANGE_DB[0]), AUTO_RANGE_DB[1]), 1)
+
+
+def write_image(
+    image: SonarImage,
+    path: str | os.PathLike,
+    *,
+    bit_depth: int = 8,
+    dynamic_range_db: float | None = None,
+    sidecar: bool = True,
+) -> list[Path]:
+    """Write a sonar image as linear EXR or display PNG, plus a JSON sidecar.
+
+    The format follows the extension: ``.exr`` holds float32 channels "port" and "starboard"
+    (rows = pings, columns = range bins near to far, zip compression); ``.png`` holds the
+    display image of :meth:`SonarImage.display` mapped with :func:`display_mapping`. Both carry
+    ``sonar:*`` and ``sonar_raster:*`` header attributes. The sidecar is ``path`` with the
+    suffix ``.json``.
+
+    Parameters
+    ----------
+    image : SonarImage
+        Non-empty, finite intensities; every side the same shape (pings, bins).
+    path : str or path-like
+        Output file, ending in .exr or .png; its directory must exist.
+    bit_depth : int
+        8 or 16, grey levels of the PNG (ignored for EXR).
+    dynamic_range_db : float, optional
+        Decibel span of the display mapping (PNG, and recorded in the sidecar); None spans the
+        image (:func:`auto_dynamic_range`).
+    sidecar : bool
+        Also write the JSON sidecar.
+
+    Returns
+    -------
+    list of Path
+        The files written: the image, then the sidecar if any.
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in SUPPORTED:
+        raise SonarRasterError(
+            f"cannot write {path}: unsupported extension {path.suffix or '(none)'!r}; "
+            f"use one of {', '.join(SUPPORTED)}"
+        )
+    if bit_depth not in (8, 16):
+        raise SonarRasterError(f"PNG bit depth must be 8 or 16, got {bit_depth!r}")
+    sides = _checked_sides(image)
+    _check_directory(path)
+    display = SonarImage(sides, image.sonar).display()
+    if dynamic_range_db is None:
+        dynamic_range_db = auto_dynamic_range(display)
+    codes, ref = display_mapping(display, dynamic_range_db)
+    mapping = {
+        "ref_level_m2": ref,
+        "dynamic_range_db": float(dynamic_range_db),
+        "formula": MAPPING_FORMULA,
+    }
+    jobs: list[tuple[Path, Callable[[Path], None]]] = []
+    if suffix == ".exr":
+        exr_attrs = _exr_attributes(image)
+        jobs.append((path, lambda tmp: _write_exr(tmp, sides, exr_attrs)))
+    else:
+        png_attrs = _png_attributes(image, mapping, bit_depth)
+        jobs.append((path, lambda tmp: _write_png(tmp, codes, bit_depth, png_attrs)))
+    if sidecar:
+        doc = _sidecar(image, mapping)
+        jobs.append((path.with_suffix(".json"), lambda tmp: _write_json(tmp, doc)))
+    return _commit(jobs)
+
+
+def read_pixels(path: str | os.PathLike) -> tuple[np.ndarray, oiio.ImageSpec]:
+    """Pixels of any image OpenImageIO reads, as float32 (height, width, channels), and its spec.
+
+    Raises
+    ------
+    SonarRasterError
+        If the file cannot be opened or its pixels cannot be read.
+    """
+    inp = oiio.ImageInput.open(str(path))
+    if inp is None:
+        raise SonarRasterError(f"cannot read {path}: {oiio.geterror() or 'not an image'}")
+    try:
+        spec = inp.spec()
+        pixels = inp.read_image(format=oiio.FLOAT)
+        error = inp.geterror()
+    finally:
+        inp.close()
+    if pixels is None:
+        raise SonarRasterError(f"cannot read pixels of {path}: {error}")
+    shape = (spec.height, spec.width, spec.nchannels)
+    return np.asarray(pixels, dtype=np.float32).reshape(shape), spec
+
+
+def read_exr(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], dict]:
+    """Read an EXR written by :func:`write_image`.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The .exr file.
+
+    Returns
+    -------
+    sides : dict of str to ndarray, shape (pings, bins), float32
+        One entry per channel named "port" or "starboard".
+    attributes : dict
+        Every header attribute by name (``sonar:*``, ``sonar_raster:*``, compression, ...).
+    """
+    pixels, spec = read_pixels(path)
+    names = list(spec.channelnames)
+    if not names or any(name not in SIDES for name in names):
+        raise SonarRasterError(f"{path}: channels {names} are not port/starboard sonar sides")
+    sides = {name: np.ascontiguousarray(pixels[:, :, i]) for i, name in enumerate(names)}
+    return sides, {attr.name: attr.value for attr in spec.extra_attribs}
+
+
+def _checked_sides(image: SonarImage) -> dict[str, np.ndarray]:
+    """Check the image and return its sides as float32 (pings, bins), port first."""
+    if not image.sides:
+        raise SonarRasterError("the image has no sides; nothing to write")
+    unknown = sorted(set(image.sides) - set(SIDES))
+    if unknown:
+        raise SonarRasterError(f"unknown image sides {unknown}; expected port and/or starboard")
+    raw = {s: np.asarray(image.sides[s]) for s in SIDES if s in image.sides}
+    shapes = {a.shape for a in raw.values()}
+    if len(shapes) != 1 or len(next(iter(shapes))) != 2:
+        raise SonarRasterError(f"image sides must be 2-D arrays of one shape, got {sorted(shapes)}")
+    if 0 in next(iter(shapes)):
+        raise SonarRasterError(f"the image is empty (shape {next(iter(shapes))}); nothing to write")
+    for name, array in raw.items():
+        if array.dtype.kind not in "biuf":
+            raise SonarRasterError(
+                f"the {name} image has dtype {array.dtype}; expected real numbers"
+            )
+        if not np.all(np.isfinite(array)) or np.abs(array).max() > np.finfo(np.float32).max:
+            raise SonarRasterError(
+                f"the {name} image has NaN or infinite values (in float32); this is a renderer bug"
+            )
+    return {name: array.astype(np.float32, copy=False) for name, array in raw.items()}
+
+
+def _check_directory(path: Path) -> None:
+    directory = path.parent
+    if not directory.exists():
+        raise SonarRasterError(
+            f"cannot write {path}: directory {directory} does not exist; create it first"
+        )
+    if not directory.is_dir():
+        raise SonarRasterError(f"cannot write {path}: {directory} is not a directory")
+
+
+def temp_name(final: Path) -> Path:
+    """A hidden, unique temporary name beside ``final`` (``.<name>.<token><suffix>``)."""
+    return final.with_name(f".{final.name}.{secrets.token_hex(6)}{final.suffix}")
+
+
+def png_type(bit_depth: int) -> tuple[type, Any]:
+    """The numpy integer type and OpenImageIO type of an 8- or 16-bit PNG."""
+    return (np.uint8, oiio.UINT8) if bit_depth == 8 else (np.uint16, oiio.UINT16)
+
+
+def quantised_codes(codes: np.ndarray, bit_depth: int) -> tuple[np.ndarray, Any]:
+    """Display codes in [0, 1] as 8- or 16-bit integers, and their OpenImageIO type."""
+    dtype, fmt = png_type(bit_depth)
+    return np.rint(codes * np.iinfo(dtype).max).astype(dtype), fmt
+
+
+def _commit(jobs: list[tuple[Path, Callable[[Path], None]]]) -> list[Path]:
+    """Run each writer on a temporary file, then rename all of them into place."""
+    temps: list[Path] = []
+    try:
+        for final, writer in jobs:
+            tmp = temp_name(final)
+            temps.append(tmp)
+            try:
+                writer(tmp)
+            except OSError as exc:
+                raise SonarRasterError(f"cannot write {final}: {exc.strerror or exc}") from None
+            except RuntimeError as exc:
+                raise SonarRasterError(f"cannot write {final}: {exc}") from None
+        for tmp, (final, _) in zip(temps, jobs, strict=True):
+            try:
+                os.replace(tmp, final)
+            except OSError as exc:
+                raise SonarRasterError(f"cannot write {final}: {exc.strerror or exc}") from None
+    finally:
+        for tmp in temps:
+            tmp.unlink(missing_ok=True)
+    return [final for final, _ in jobs]
+
+
+def _write_oiio(tmp: Path, pixels: np.ndarray, spec: oiio.ImageSpec) -> None:
+    """Encode (h, w, c) pixels with OpenImageIO; raise RuntimeError on failure."""
+    out = oiio.ImageOutput.create(str(tmp))
+    if out is None:
+        raise RuntimeError(oiio.geterror() or "no OpenImageIO writer for this format")
+    try:
+        if not out.open(str(tmp), spec):
+            raise RuntimeError(out.geterror())
+        if not out.write_image(pixels):
+            raise RuntimeError(out.geterror())
+    finally:
+        out.close()
+
+
+def _write_exr(tmp: Path, sides: dict[str, np.ndarray], attrs: dict) -> None:
+    pixels = np.stack(list(sides.values()), axis=-1)  # (pings, bins, channels), never 2-D
+    spec = oiio.ImageSpec(pixels.shape[1], pixels.shape[0], pixels.shape[2], oiio.FLOAT)
+    spec.channelnames = tuple(sides)
+    spec.attribute("compression", "zip")
+    for name, value in attrs.items():
+        spec.attribute(name, value)
+    _write_oiio(tmp, pixels, spec)
+
+
+def _write_png(tmp: Path, codes: np.ndarray, bit_depth: int, attrs: dict) -> None:
+    quantised, fmt = quantised_codes(codes, bit_depth)
+    quantised = quantised[:, :, np.newaxis]
+    spec = oiio.ImageSpec(quantised.shape[1], quantised.shape[0], 1, fmt)
+    spec.channelnames = ("Y",)
+    for name, value in attrs.items():
+        spec.attribute(name, value)
+    _write_oiio(tmp, quantised, spec)
+
+
+def _write_json(tmp: Path, doc: object) -> None:
+    with open(tmp, "x", encoding="utf-8") as fh:
+        json.dump(doc, fh, indent=2, allow_nan=False)
+        fh.write("\n")
+
+
+def _header_value(value: object, as_text: bool) -> str | int | float:
+    """Convert to what OIIO headers store: str, int (32-bit) or float; lists comma-joined."""
+    if isinstance(value, (list, tuple)):
+        return ",".join(str(v) for v in value)
+    if isinstance(value, (bool, np.bool_)) or value is None:
+        return str(value)
+    if isinstance(value, (int, np.integer)) and not as_text and abs(int(value)) < 2**31:
+        return int(value)
+    if isinstance(value, (float, np.floating)) and not as_text:
+        return float(value)
+    if isinstance(value, (float, np.floating)):
+        return repr(float(value))
+    return str(value)
+
+
+def _metadata_attributes(metadata: dict) -> dict[str, str]:
+    """Flatten ``metadata`` to ``sonar_raster:<a.b.c>`` → JSON of each leaf, skipping large ones."""
+    flat: dict[str, str] = {}
+
+    def walk(key: str, node: object) -> None:
+        if isinstance(node, dict) and node:
+            for sub, value in node.items():
+                walk(f"{key}.{sub}", value)
+            return
+        name = f"sonar_raster:{key}"
+        text = json.dumps(_jsonable(node), allow_nan=False)
+        if len(name) <= _MAX_KEY and len(text) <= _MAX_VALUE:
+            flat[name] = text
+
+    for key, value in metadata.items():
+        walk(str(key), value)
+    return flat
+
+
+def _exr_attributes(image: SonarImage) -> dict:
+    attrs: dict = {f"sonar:{k}": _header_value(v, False) for k, v in image.sonar.to_dict().items()}
+    attrs["sonar:units"] = UNITS
+    attrs["sonar:layout"] = LAYOUT
+    attrs.update(_metadata_attributes(image.metadata))
+    return attrs
+
+
+def _png_attributes(image: SonarImage, mapping: dict, bit_depth: int) -> dict[str, str]:
+    """PNG text chunks (PNG keeps only strings): sonar, display mapping, metadata."""
+    attrs = {f"sonar:{k}": str(_header_value(v, True)) for k, v in image.sonar.to_dict().items()}
+    max_code = 2**bit_depth - 1
+    attrs.update(
+        {
+            "sonar:units": f"display code 0..{max_code}, dB re display_ref_level_m2 of {UNITS}",
+            "sonar:layout": DISPLAY_LAYOUT,
+            "sonar:display_ref_level_m2": repr(mapping["ref_level_m2"]),
+            "sonar:display_dynamic_range_db": repr(mapping["dynamic_range_db"]),
+            "sonar:display_max_code": str(max_code),
+            "sonar:display_mapping": MAPPING_FORMULA,
+            "ImageDescription": (
+                "Side-scan sonar display image. "
+                f"Reference level ref = {mapping['ref_level_m2']!r} m^2, "
+                f"dynamic range DR = {mapping['dynamic_range_db']!r} dB, max_code = {max_code}. "
+                + MAPPING_FORMULA
+            ),
+        }
+    )
+    attrs.update(_metadata_attributes(image.metadata))
+    return attrs
+
+
+def _sidecar(image: SonarImage, mapping: dict) -> object:
+    return _jsonable(
+        {
+            "sonar": image.sonar.to_dict(),
+            "metadata": image.metadata,
+            "shape": list(image.shape),
+            "sides": [s for s in SIDES if s in image.sides],
+            "units": UNITS,
+            "layout": LAYOUT,
+            "display_mapping": mapping,
+            "package_version": _package_version(),
+            "written_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        }
+    )
+
+
+def _package_version() -> str:
+    try:
+        return importlib_metadata.version("sonar_raster")
+    except importlib_metadata.PackageNotFoundError:
+        return "unknown (not installed)"
+
+
+def _jsonable(value: object) -> object:
+    """Convert to plain JSON data: numpy → Python, tuples/sets → lists, non-finite floats → str."""
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, (set, frozenset)):
+        return sorted(_jsonable(v) for v in value)  # type: ignore[type-var]
+    if isinstance(value, np.ndarray):
+        return _jsonable(value.tolist())
+    if isinstance(value, np.generic):
+        return _jsonable(value.item())
+    if isinstance(value, float) and not math.isfinite(value):
+        return str(value)
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    if value is None or isinstance(value, (str, bool, int, float)):
+        return value
+    raise SonarRasterError(
+        f"image metadata holds a {type(value).__name__}, which JSON cannot store; "
+        "use numbers, strings, lists and dicts"
+    )

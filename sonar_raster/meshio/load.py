@@ -1,0 +1,177 @@
+"""Model files to mesh parts: VRML97 with our own reader, other formats through trimesh.
+
+Coordinates are returned as stored in the file (metres assumed), with every scene-graph
+transform applied; no axis convention is changed (VRML and glTF are y-up by convention).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import struct
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import SonarRasterError
+from ..scene import MeshPart
+from .vrml import load_vrml
+
+log = logging.getLogger(__name__)
+
+#: File name endings read by :func:`load_model`, lower case.
+VRML_SUFFIXES = (".wrl", ".vrml", ".wrz", ".wrl.gz")
+TRIMESH_SUFFIXES = (".gltf", ".glb", ".obj", ".ply", ".stl", ".off")
+
+# What trimesh raises on malformed files (JSON and accessor errors in glTF, short buffers).
+_TRIMESH_ERRORS = (
+    ValueError,
+    TypeError,
+    KeyError,
+    IndexError,
+    AttributeError,
+    OSError,
+    EOFError,
+    struct.error,
+)
+_DEFAULT_REFLECTIVITY = 0.5
+
+
+def load_model(path: str | Path) -> list[MeshPart]:
+    """Read a model file as mesh parts in world coordinates.
+
+    ``.wrl``/``.vrml`` (also gzipped) go through the VRML97 reader; ``.gltf .glb .obj .ply
+    .stl .off`` through trimesh, one part per scene-graph node that holds triangles (point
+    clouds and paths are skipped), named after the node, with its world transform applied.
+
+    Parameters
+    ----------
+    path : str or Path
+        The model file.
+
+    Returns
+    -------
+    list of MeshPart
+        Vertices (n, 3) float64 in metres, faces (m, 3) int64 counter-clockwise. Reflectivity
+        is, in order: the node's glTF ``extras.reflectivity``, the mesh's
+        ``extras.reflectivity``, the mean RGB of the glTF material ``baseColorFactor``, else
+        0.5 (VRML: mean Material ``diffuseColor``).
+
+    Raises
+    ------
+    SonarRasterError
+        If the extension is unknown, the file is missing, unreadable or malformed, or it holds
+        no triangles.
+    """
+    path = Path(path)
+    name = path.name.lower()
+    if not name.endswith(VRML_SUFFIXES + TRIMESH_SUFFIXES):
+        raise SonarRasterError(
+            f"'{path.name}' is not a known model format; use one of "
+            f"{' '.join(VRML_SUFFIXES + TRIMESH_SUFFIXES)}"
+        )
+    if not path.is_file():
+        what = "is a folder, not a file" if path.is_dir() else "not found"
+        raise SonarRasterError(f"model file '{path}' {what}; check the path")
+    parts = load_vrml(path) if name.endswith(VRML_SUFFIXES) else _load_trimesh(path)
+    if not parts:
+        raise SonarRasterError(
+            f"model file '{path.name}' holds no triangles; export the model as a triangle mesh"
+        )
+    return parts
+
+
+def _load_trimesh(path: Path) -> list[MeshPart]:
+    """One MeshPart per scene-graph node of a trimesh-readable file."""
+    import trimesh  # slow to import: only when such a file is read
+
+    kind = path.suffix.lstrip(".").upper()
+    try:
+        scene = trimesh.load_scene(str(path))
+    except ImportError as exc:  # trimesh decodes non-UTF-8 text with an optional package
+        raise SonarRasterError(
+            f"cannot read '{path.name}' as {kind}: it is corrupt, or text that is not UTF-8; "
+            "re-export it"
+        ) from exc
+    except _TRIMESH_ERRORS as exc:
+        detail = " ".join(str(exc).split())[:120]
+        raise SonarRasterError(
+            f"cannot read '{path.name}' as {kind} ({type(exc).__name__}: {detail}); "
+            "check the file or re-export it"
+        ) from exc
+    parts = []
+    for node in scene.graph.nodes_geometry:
+        matrix, geometry_name = scene.graph[node]
+        mesh = scene.geometry.get(geometry_name)
+        if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+            log.debug("%s: skipping node %s without triangles", path.name, node)
+            continue
+        matrix = np.asarray(matrix, dtype=np.float64)
+        vertices = np.asarray(mesh.vertices, dtype=np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
+        faces = np.array(mesh.faces, dtype=np.int64)
+        if np.linalg.det(matrix[:3, :3]) < 0:  # a mirroring transform turns faces inside out
+            faces = faces[:, ::-1].copy()
+        reflectivity = _reflectivity(scene, node, mesh, path)
+        parts.append(MeshPart(vertices, faces, reflectivity, str(node)))
+    return parts
+
+
+def _reflectivity(scene: Any, node: str, mesh: Any, path: Path) -> float | np.ndarray:
+    """Node extras, mesh extras, then texture x colour factor, colour factor, else 0.5."""
+    transforms = scene.graph.transforms
+    parent = transforms.parents.get(node)
+    node_extras = transforms.edge_data.get((parent, node), {}).get("metadata") or {}
+    for extras in (node_extras, mesh.metadata or {}):
+        if "reflectivity" in extras:
+            return _checked(extras["reflectivity"], node, path)
+    colour = getattr(getattr(mesh.visual, "material", None), "baseColorFactor", None)
+    factor = 1.0
+    if colour is not None:
+        colour = np.asarray(colour)
+        scale = 255.0 if np.issubdtype(colour.dtype, np.integer) else 1.0
+        factor = float(colour[:3].mean()) / scale
+    texture = _texture_reflectivity(mesh)
+    if texture is not None:
+        return factor * texture
+    return factor if colour is not None else _DEFAULT_REFLECTIVITY
+
+
+#: Barycentric points at which a face samples its texture (centroid and towards each corner).
+_TEXTURE_SAMPLES = np.array(
+    [[1 / 3, 1 / 3, 1 / 3], [2 / 3, 1 / 6, 1 / 6], [1 / 6, 2 / 3, 1 / 6], [1 / 6, 1 / 6, 2 / 3]]
+)
+
+
+def _texture_reflectivity(mesh: Any) -> np.ndarray | None:
+    """Per-face reflectivity from a colour texture: mean grey (RGB mean / 255) at 4 points.
+
+    The renderer takes one reflectivity per face, so a texture varies R across a surface at
+    the mesh's resolution (subdivide coarse meshes to see finer texture detail). None when the
+    mesh has no UVs or no image.
+    """
+    from trimesh.visual.color import uv_to_color
+
+    visual = mesh.visual
+    uv = getattr(visual, "uv", None)
+    material = getattr(visual, "material", None)
+    image = getattr(material, "baseColorTexture", None) or getattr(material, "image", None)
+    if uv is None or image is None or len(uv) != len(mesh.vertices):
+        return None
+    corners = np.asarray(uv, dtype=np.float64)[np.asarray(mesh.faces)]
+    grey = [
+        uv_to_color(np.einsum("k,mkj->mj", w, corners), image)[:, :3].mean(axis=1) / 255.0
+        for w in _TEXTURE_SAMPLES
+    ]
+    return np.mean(grey, axis=0)
+
+
+def _checked(value: Any, node: str, path: Path) -> float:
+    """Return a reflectivity from extras after checking it is a finite number >= 0."""
+    number = isinstance(value, (int, float)) and not isinstance(value, bool)
+    if not (number and math.isfinite(value) and value >= 0):
+        raise SonarRasterError(
+            f"'{path.name}' node '{node}' has extras reflectivity {value!r}; "
+            "set it to a number >= 0"
+        )
+    return float(value)

@@ -1,0 +1,816 @@
+"""A small VRML97 reader: the subset of ``#VRML V2.0 utf8`` that model files use, as meshes.
+
+The text is parsed into a tree of :class:`_Node` (PROTO instances already expanded, USE sharing
+the DEF'd node), then walked with the current transform to make one :class:`MeshPart` per
+Shape. Numeric lists (``point [...]``, ``coordIndex [...]``) are converted in bulk with numpy.
+"""
+
+from __future__ import annotations
+
+import gzip
+import logging
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import SonarRasterError
+from ..scene import MeshPart
+
+log = logging.getLogger(__name__)
+
+#: Segments around the axis of Cylinder, Cone and Sphere (the sphere has half as many rings).
+SEGMENTS = 32
+
+_HEADER = "#VRML V2.0 utf8"
+_SKIP = re.compile(r"(?:[\s,]+|#[^\n]*)*")
+_TOKEN = re.compile(
+    r"""(?P<num>[+-]?(?:0[xX][0-9a-fA-F]+|(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?))
+      | (?P<str>"(?:[^"\\]|\\.)*")
+      | (?P<punct>[{}\[\]])
+      | (?P<id>[^\x00-\x20"#'+,\-.\[\\\]{}0-9\x7f][^\x00-\x20"#',\[\\\]{}\x7f]*)""",
+    re.VERBOSE | re.DOTALL,
+)
+_LIST_STOP = re.compile(r'[#\]{}"]')
+_GROUPS = {"Group", "Transform", "Collision", "Anchor", "Billboard"}
+_IN_OUT = {"eventIn", "eventOut", "inputOnly", "outputOnly"}
+_FIELD_DECL = {"field", "exposedField", "initializeOnly", "inputOutput"}
+_MISSING = object()
+
+
+@dataclass
+class _Source:
+    """A parsed text: its name for messages and the offsets of its line breaks."""
+
+    name: str
+    text: str
+    _breaks: np.ndarray | None = None
+
+    def line(self, pos: int) -> int:
+        """1-based line number of character offset ``pos``."""
+        if self._breaks is None:
+            self._breaks = np.array([m.start() for m in re.finditer("\n", self.text)], dtype=int)
+        return int(np.searchsorted(self._breaks, pos)) + 1
+
+    def error(self, pos: int, message: str) -> SonarRasterError:
+        """Make a one-line error ``name:line: message`` located at ``pos``."""
+        return SonarRasterError(f"{self.name}:{self.line(pos)}: {message}")
+
+
+@dataclass
+class _Node:
+    """One parsed node: its type, its fields and where it came from."""
+
+    type: str
+    fields: dict[str, Any]
+    src: _Source
+    pos: int
+    base_dir: Path | None
+    def_name: str | None = None
+
+
+@dataclass(frozen=True)
+class _IsRef:
+    """``field IS name`` inside a PROTO body, replaced when the PROTO is instantiated."""
+
+    name: str
+
+
+@dataclass
+class _Proto:
+    """A PROTO (body parsed, IS references unresolved) or an unresolved EXTERNPROTO."""
+
+    name: str
+    defaults: dict[str, Any]
+    body: list[_Node] = field(default_factory=list)
+    urls: list[str] | None = None
+
+
+@dataclass(frozen=True)
+class _Tok:
+    kind: str  # "num", "str", "id", "{", "}", "[", "]" or "eof"
+    text: str
+    pos: int
+
+    @property
+    def shown(self) -> str:
+        """The token as quoted in messages."""
+        return "end of file" if self.kind == "eof" else repr(self.text)
+
+
+class _Lexer:
+    """Tokens of a VRML text, with numeric lists read in one numpy call."""
+
+    def __init__(self, src: _Source) -> None:
+        self.src, self.text, self.pos = src, src.text, 0
+        self._peeked: _Tok | None = None
+
+    def peek(self) -> _Tok:
+        """Return the next token without consuming it."""
+        if self._peeked is None:
+            pos = _SKIP.match(self.text, self.pos).end()  # type: ignore[union-attr]
+            if pos >= len(self.text):
+                self._peeked = _Tok("eof", "", len(self.text.rstrip()))
+            else:
+                m = _TOKEN.match(self.text, pos)
+                if m is None:
+                    raise self.src.error(
+                        pos, f"unexpected character {self.text[pos]!r}; fix the VRML syntax"
+                    )
+                kind = m.lastgroup if m.lastgroup != "punct" else m.group()
+                self._peeked = _Tok(kind or "", m.group(), pos)
+                pos = m.end()
+            self.pos = pos
+        return self._peeked
+
+    def next(self) -> _Tok:
+        """Consume and return the next token."""
+        tok = self.peek()
+        self._peeked = None
+        return tok
+
+    def expect(self, kind: str, what: str) -> _Tok:
+        """Consume a token of ``kind`` or raise naming ``what`` was expected."""
+        tok = self.next()
+        if tok.kind != kind:
+            raise self.src.error(
+                tok.pos, f"expected {what}, found {tok.shown}; fix the VRML syntax"
+            )
+        return tok
+
+    def number_list(self, open_pos: int) -> np.ndarray:
+        """Read numbers up to the ``]`` that closes the list opened at ``open_pos``."""
+        start = self.peek().pos
+        self._peeked = None
+        pieces, i = [], start
+        while True:
+            m = _LIST_STOP.search(self.text, i)
+            if m is None:
+                raise self.src.error(open_pos, "'[' is never closed; add the missing ']'")
+            pieces.append(self.text[i : m.start()])
+            if m.group() == "#":
+                eol = self.text.find("\n", m.start())
+                i = len(self.text) if eol < 0 else eol
+            elif m.group() == "]":
+                self.pos = m.end()
+                break
+            else:
+                raise self.src.error(
+                    m.start(),
+                    f"expected a number or ']', found "
+                    f"{m.group()!r}; close the list opened on "
+                    f"line {self.src.line(open_pos)}",
+                )
+        words = "".join(pieces).replace(",", " ").split()
+        try:
+            return np.array(words, dtype=np.float64)
+        except ValueError:
+            return self._slow_numbers(words, start)
+
+    def _slow_numbers(self, words: list[str], start: int) -> np.ndarray:
+        """Convert hexadecimal integers, or raise at the first word that is not a number."""
+        out = np.empty(len(words))
+        for k, word in enumerate(words):
+            m = _TOKEN.fullmatch(word)
+            if m is None or m.lastgroup != "num":
+                raise self.src.error(
+                    self.text.find(word, start),
+                    f"expected a number, found {word!r}; fix the VRML syntax",
+                )
+            out[k] = _number(word)
+        return out
+
+
+def _number(text: str) -> float:
+    return float(int(text, 16)) if text.lstrip("+-")[:2] in ("0x", "0X") else float(text)
+
+
+class _Parser:
+    """Recursive-descent parser from a VRML97 text to a list of root nodes."""
+
+    def __init__(self, src: _Source, base_dir: Path | None, stack: tuple[Path, ...]) -> None:
+        self.src, self.base_dir, self.stack = src, base_dir, stack
+        self.lex = _Lexer(src)
+        self.defs: dict[str, _Node | None] = {}
+        self.protos: dict[str, _Proto] = {}
+
+    def parse(self) -> list[_Node]:
+        """Check the header and parse every statement of the file."""
+        text = self.src.text.lstrip("\ufeff")
+        if not text.startswith(_HEADER):
+            hint = (
+                "VRML 1.0 is not supported; convert the file to VRML97"
+                if text.startswith("#VRML V1.0")
+                else f"not a VRML97 file; the first line must be '{_HEADER}'"
+            )
+            raise self.src.error(0, hint)
+        self.lex.pos = len(self.src.text) - len(text)  # skip a byte-order mark
+        try:
+            return self.statements("eof")  # the header line is a comment
+        except RecursionError:
+            raise self.src.error(
+                self.lex.pos, "nodes are nested too deeply; flatten the hierarchy"
+            ) from None
+
+    def statements(self, end: str) -> list[_Node]:
+        """Nodes up to (and consuming) a token of kind ``end``; PROTO and ROUTE are absorbed."""
+        nodes = []
+        while self.lex.peek().kind != end:
+            tok = self.lex.next()
+            if tok.kind != "id":
+                closing = {"eof": "end of file", "]": "']'", "}": "'}'"}[end]
+                raise self.src.error(
+                    tok.pos,
+                    f"expected a node or {closing}, found {tok.shown}; fix the VRML syntax",
+                )
+            node = self.statement(tok)
+            if node is not None:
+                nodes.append(node)
+        self.lex.next()
+        return nodes
+
+    def statement(self, tok: _Tok) -> _Node | None:
+        """One statement starting with identifier ``tok``."""
+        if tok.text == "PROTO":
+            self.proto()
+            return None
+        if tok.text == "EXTERNPROTO":
+            self.externproto()
+            return None
+        if tok.text == "ROUTE":
+            for _ in range(3):
+                self.lex.expect("id", "a ROUTE 'node.field TO node.field'")
+            return None
+        return self.node_statement(tok)
+
+    def node_statement(self, tok: _Tok) -> _Node | None:
+        """``DEF name Node {...}``, ``USE name`` or ``Node {...}``."""
+        if tok.text == "USE":
+            name = self.lex.expect("id", "a DEF name after USE")
+            if name.text not in self.defs:
+                raise self.src.error(
+                    name.pos, f"USE {name.text} before any DEF {name.text}; define the node first"
+                )
+            return self.defs[name.text]
+        def_name = None
+        if tok.text == "DEF":
+            def_name = self.lex.expect("id", "a name after DEF").text
+            tok = self.lex.expect("id", f"a node type after DEF {def_name}")
+        node = self.node(tok, def_name)
+        if def_name is not None:
+            self.defs[def_name] = node
+        return node
+
+    def node(self, tok: _Tok, def_name: str | None) -> _Node | None:
+        """Parse node ``tok {...}``; a PROTO instance expands to (a copy of) its body."""
+        self.lex.expect("{", f"'{{' after {tok.text}")
+        fields = self.fields(tok)
+        proto = self.protos.get(tok.text)
+        if proto is None:
+            return _Node(tok.text, fields, self.src, tok.pos, self.base_dir, def_name)
+        if proto.urls is not None:
+            raise self.src.error(
+                tok.pos,
+                f"EXTERNPROTO {tok.text} has no local file among "
+                f"{proto.urls}; put that file next to this one",
+            )
+        if not proto.body:
+            return None
+        node = _substitute(proto.body[0], {**proto.defaults, **fields}, {})
+        if def_name is not None:
+            node.def_name = def_name
+        return node
+
+    def fields(self, owner: _Tok) -> dict[str, Any]:
+        """Field values up to the ``}`` that closes node ``owner``."""
+        fields: dict[str, Any] = {}
+        while True:
+            tok = self.lex.next()
+            if tok.kind == "}":
+                return fields
+            if tok.kind != "id":
+                raise self.src.error(
+                    tok.pos,
+                    f"expected a field name or '}}' to close "
+                    f"{owner.text} from line "
+                    f"{self.src.line(owner.pos)}, found "
+                    f"{tok.shown}; fix the VRML syntax",
+                )
+            if tok.text in _IN_OUT or tok.text in _FIELD_DECL:  # Script interface
+                self.lex.expect("id", "a field type")
+                name = self.lex.expect("id", "a field name").text
+                if tok.text in _FIELD_DECL or self.lex.peek().text == "IS":
+                    fields[name] = self.value()
+            else:
+                fields[tok.text] = self.value()
+
+    def value(self) -> Any:
+        """Parse a field value: numbers, string(s), boolean, node(s), NULL or ``IS name``."""
+        tok = self.lex.next()
+        if tok.kind == "num":
+            values = [_number(tok.text)]
+            while self.lex.peek().kind == "num":
+                values.append(_number(self.lex.next().text))
+            return np.array(values)
+        if tok.kind == "str":
+            return _unquote(tok.text)
+        if tok.kind == "[":
+            return self.list_value(tok)
+        if tok.kind == "id":
+            simple = {"TRUE": True, "FALSE": False, "NULL": None}
+            if tok.text in simple:
+                return simple[tok.text]
+            if tok.text == "IS":
+                return _IsRef(self.lex.expect("id", "a PROTO field name after IS").text)
+            return self.node_statement(tok)
+        raise self.src.error(
+            tok.pos, f"expected a field value, found {tok.shown}; fix the VRML syntax"
+        )
+
+    def list_value(self, open_tok: _Tok) -> Any:
+        """Parse the rest of a ``[ ... ]`` value: numbers, strings, booleans or nodes."""
+        first = self.lex.peek()
+        if first.kind == "num":
+            return self.lex.number_list(open_tok.pos)
+        if first.kind == "str" or first.text in ("TRUE", "FALSE"):
+            items = []
+            while self.lex.peek().kind != "]":
+                item = self.value()
+                if not isinstance(item, (str, bool)):
+                    raise self.src.error(
+                        first.pos, "a list mixes strings with other values; fix the VRML syntax"
+                    )
+                items.append(item)
+            self.lex.next()
+            return items
+        return self.statements("]")
+
+    def interface(self, with_values: bool) -> dict[str, Any]:
+        """PROTO/EXTERNPROTO interface ``[ field SFType name value ... ]``; default values."""
+        self.lex.expect("[", "'[' to open the PROTO interface")
+        defaults: dict[str, Any] = {}
+        while (tok := self.lex.next()).kind != "]":
+            if tok.kind != "id" or tok.text not in _IN_OUT | _FIELD_DECL:
+                raise self.src.error(
+                    tok.pos,
+                    f"expected field/exposedField/eventIn/eventOut "
+                    f"in a PROTO interface, found {tok.shown}; "
+                    "fix the VRML syntax",
+                )
+            self.lex.expect("id", "a field type")
+            name = self.lex.expect("id", "a field name").text
+            if with_values and tok.text in _FIELD_DECL:
+                defaults[name] = self.value()
+        return defaults
+
+    def proto(self) -> None:
+        """``PROTO name [interface] { body }``; DEF names of the body stay inside it."""
+        name = self.lex.expect("id", "a PROTO name").text
+        defaults = self.interface(with_values=True)
+        self.lex.expect("{", f"'{{' to open the body of PROTO {name}")
+        outer, self.defs = self.defs, {}
+        body = self.statements("}")
+        self.defs = outer
+        self.protos[name] = _Proto(name, defaults, body)
+
+    def externproto(self) -> None:
+        """``EXTERNPROTO name [interface] url``: resolved from a local file when possible."""
+        tok = self.lex.expect("id", "an EXTERNPROTO name")
+        self.interface(with_values=False)
+        urls = self.value()
+        urls = [urls] if isinstance(urls, str) else urls
+        if not isinstance(urls, list):
+            raise self.src.error(
+                tok.pos, f"EXTERNPROTO {tok.text} needs a url string; fix the VRML syntax"
+            )
+        for url in urls:
+            path_text, _, fragment = str(url).partition("#")
+            path = _local_path(path_text, self.base_dir)
+            if path is None or path in self.stack:
+                continue
+            protos = _parse_file(path, self.stack)[1]
+            proto = protos.get(fragment) if fragment else next(iter(protos.values()), None)
+            if proto is not None:
+                self.protos[tok.text] = proto
+                return
+        self.protos[tok.text] = _Proto(tok.text, {}, urls=[str(u) for u in urls])
+
+
+def _unquote(text: str) -> str:
+    return re.sub(r"\\(.)", r"\1", text[1:-1])
+
+
+def _substitute(value: Any, args: dict[str, Any], memo: dict[int, Any]) -> Any:
+    """Copy a PROTO body, replacing ``IS`` references by ``args``; keeps USE sharing."""
+    if isinstance(value, _IsRef):
+        return args.get(value.name, _MISSING)
+    if isinstance(value, list):
+        items = (_substitute(v, args, memo) for v in value)
+        return [v for v in items if v is not _MISSING]
+    if not isinstance(value, _Node):
+        return value
+    if id(value) not in memo:
+        copy = _Node(value.type, {}, value.src, value.pos, value.base_dir, value.def_name)
+        memo[id(value)] = copy
+        for key, item in value.fields.items():
+            new = _substitute(item, args, memo)
+            if new is not _MISSING:
+                copy.fields[key] = new
+    return memo[id(value)]
+
+
+def _local_path(url: str, base_dir: Path | None) -> Path | None:
+    """Return the existing local file a url names, else None (never fetches remote urls)."""
+    if re.match(r"^[a-zA-Z][a-zA-Z0-9+.-]+:", url) and not url.startswith("file:"):
+        return None
+    url = re.sub(r"^file:(//)?", "", url)
+    path = Path(url) if base_dir is None else base_dir / url
+    return path.resolve() if path.is_file() else None
+
+
+def _read_text(path: Path) -> str:
+    """Read the text of a (possibly gzipped) VRML file."""
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise SonarRasterError(f"VRML file '{path}' not found; check the path") from None
+    except OSError as exc:
+        raise SonarRasterError(
+            f"cannot read VRML file '{path}' ({exc.strerror}); check the path and its permissions"
+        ) from None
+    if data[:2] == b"\x1f\x8b":
+        try:
+            data = gzip.decompress(data)
+        except (OSError, EOFError):
+            raise SonarRasterError(
+                f"{path.name}: broken gzip data; re-export or re-compress the file"
+            ) from None
+    return data.decode("utf-8", errors="replace")
+
+
+def _parse_file(path: Path, stack: tuple[Path, ...]) -> tuple[list[_Node], dict[str, _Proto]]:
+    """Root nodes and PROTOs of a file; ``stack`` holds the files that led to it."""
+    path = path.resolve()
+    parser = _Parser(_Source(path.name, _read_text(path)), path.parent, (*stack, path))
+    return parser.parse(), parser.protos
+
+
+def _numbers(node: _Node, name: str, default: Any = None, width: int = 1) -> np.ndarray:
+    """Numeric field ``name`` as a flat float64 array whose size is a multiple of ``width``."""
+    value = node.fields.get(name, default)
+    if value is None or (isinstance(value, list) and not value):
+        return np.zeros(0)
+    if not isinstance(value, np.ndarray) or value.size % width:
+        raise node.src.error(
+            node.pos,
+            f"{node.type} field '{name}' needs numbers in groups of {width}; fix the model file",
+        )
+    return value.ravel()
+
+
+def _vector(node: _Node, name: str, default: tuple[float, ...]) -> np.ndarray:
+    """Single-valued numeric field (SFVec3f, SFRotation, SFFloat...) of ``len(default)``."""
+    value = _numbers(node, name, np.array(default, dtype=np.float64))
+    if value.size != len(default):
+        raise node.src.error(
+            node.pos,
+            f"{node.type} field '{name}' needs {len(default)} "
+            f"number(s), got {value.size}; fix the model file",
+        )
+    return value
+
+
+def _flag(node: _Node, name: str, default: bool) -> bool:
+    value = node.fields.get(name, default)
+    if not isinstance(value, bool):
+        raise node.src.error(
+            node.pos, f"{node.type} field '{name}' must be TRUE or FALSE; fix the model file"
+        )
+    return value
+
+
+def _children(node: _Node, name: str) -> list[_Node]:
+    value = node.fields.get(name)
+    if value is None or isinstance(value, _Node):
+        return [] if value is None else [value]
+    if isinstance(value, list) and all(isinstance(v, _Node) for v in value):
+        return value
+    raise node.src.error(
+        node.pos, f"{node.type} field '{name}' must hold nodes; fix the model file"
+    )
+
+
+def _rotation(axis_angle: np.ndarray) -> np.ndarray:
+    """3×3 matrix of a VRML rotation ``(x, y, z, angle in radians)``."""
+    axis, angle = axis_angle[:3], axis_angle[3]
+    norm = np.linalg.norm(axis)
+    if norm == 0.0:
+        return np.eye(3)
+    x, y, z = axis / norm
+    k = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    return np.eye(3) + np.sin(angle) * k + (1.0 - np.cos(angle)) * (k @ k)
+
+
+def _transform_matrix(node: _Node) -> np.ndarray:
+    """4×4 matrix of a Transform node: ``T·C·R·SR·S·(-SR)·(-C)`` (VRML97 §6.52)."""
+    center = _vector(node, "center", (0.0, 0.0, 0.0))
+    orient = _rotation(_vector(node, "scaleOrientation", (0.0, 0.0, 1.0, 0.0)))
+    linear = (
+        _rotation(_vector(node, "rotation", (0.0, 0.0, 1.0, 0.0)))
+        @ orient
+        @ np.diag(_vector(node, "scale", (1.0, 1.0, 1.0)))
+        @ orient.T
+    )
+    matrix = np.eye(4)
+    matrix[:3, :3] = linear
+    matrix[:3, 3] = _vector(node, "translation", (0.0, 0.0, 0.0)) + center - linear @ center
+    return matrix
+
+
+def _distinct(faces: np.ndarray) -> np.ndarray:
+    """Mask of triangles, shape (m,), whose three corner indices differ."""
+    a, b, c = faces.T
+    return (a != b) & (b != c) & (a != c)
+
+
+def _fan(index: np.ndarray) -> np.ndarray:
+    """Fan triangles, shape (m, 3), of ``-1``-separated polygons; repeated corners dropped."""
+    index = np.asarray(index, dtype=np.int64)
+    if index.size == 0:
+        return np.zeros((0, 3), dtype=np.int64)
+    if index[-1] != -1:
+        index = np.append(index, -1)
+    sep = index == -1
+    polygon = np.cumsum(sep) - sep
+    starts = np.flatnonzero(np.r_[True, sep[:-1]])
+    corner = np.arange(index.size) - starts[polygon]
+    last = np.flatnonzero((corner >= 2) & ~sep)
+    faces = np.stack([index[starts[polygon[last]]], index[last - 1], index[last]], axis=1)
+    return faces[_distinct(faces)]
+
+
+def _indexed_face_set(node: _Node) -> tuple[np.ndarray, np.ndarray]:
+    coord = node.fields.get("coord")
+    points = _numbers(coord, "point", width=3) if isinstance(coord, _Node) else np.zeros(0)
+    points = points.reshape(-1, 3)
+    faces = _fan(_numbers(node, "coordIndex"))
+    bad = faces[(faces < 0) | (faces >= len(points))]
+    if bad.size:
+        raise node.src.error(
+            node.pos,
+            f"IndexedFaceSet coordIndex {bad[0]} is outside its "
+            f"{len(points)} points; fix the model file",
+        )
+    return points, faces if _flag(node, "ccw", True) else faces[:, [0, 2, 1]]
+
+
+def _elevation_grid(node: _Node) -> tuple[np.ndarray, np.ndarray]:
+    nx = int(_vector(node, "xDimension", (0,))[0])
+    nz = int(_vector(node, "zDimension", (0,))[0])
+    height = _numbers(node, "height")
+    if nx < 2 or nz < 2 or height.size != nx * nz:
+        raise node.src.error(
+            node.pos,
+            "ElevationGrid needs xDimension, zDimension >= 2 and "
+            "xDimension*zDimension heights; fix the model file",
+        )
+    x, z = np.meshgrid(
+        np.arange(nx) * _vector(node, "xSpacing", (1.0,))[0],
+        np.arange(nz) * _vector(node, "zSpacing", (1.0,))[0],
+    )
+    vertices = np.stack([x.ravel(), height, z.ravel()], axis=1)
+    a = (np.arange(nz - 1)[:, None] * nx + np.arange(nx - 1)).ravel()
+    b, c, d = a + nx, a + nx + 1, a + 1
+    faces = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+    return vertices, faces if _flag(node, "ccw", True) else faces[:, [0, 2, 1]]
+
+
+def _box(node: _Node) -> tuple[np.ndarray, np.ndarray]:
+    half = _vector(node, "size", (2.0, 2.0, 2.0)) / 2
+    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+    faces = [
+        [0, 1, 3],
+        [0, 3, 2],
+        [4, 7, 5],
+        [4, 6, 7],
+        [0, 4, 5],
+        [0, 5, 1],
+        [2, 7, 6],
+        [2, 3, 7],
+        [0, 2, 6],
+        [0, 6, 4],
+        [1, 7, 3],
+        [1, 5, 7],
+    ]
+    return signs * half, np.array(faces, dtype=np.int64)
+
+
+def _lathe(
+    profile: list[tuple[float, float]],
+    bottom: bool,
+    top: bool,
+    side: bool = True,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Surface of revolution about +y from (radius, y) pairs listed bottom to top."""
+    theta = 2 * np.pi * np.arange(SEGMENTS) / SEGMENTS
+    vertices: list[np.ndarray] = []
+    rings: list[np.ndarray] = []
+    count = 0
+    for radius, y in profile:
+        n = 1 if radius == 0 else SEGMENTS  # a pole is one vertex
+        vertices.append(
+            np.stack([radius * np.sin(theta), np.full(SEGMENTS, y), radius * np.cos(theta)], 1)[:n]
+        )
+        rings.append(count + np.arange(SEGMENTS) % n)
+        count += n
+    faces: list[np.ndarray] = []
+    if side:
+        for low, up in zip(rings[:-1], rings[1:], strict=True):
+            low1, up1 = np.roll(low, -1), np.roll(up, -1)
+            faces += [np.stack([low, low1, up1], 1), np.stack([low, up1, up], 1)]
+    for ring, y, wanted, is_top in (
+        (rings[0], profile[0][1], bottom, False),
+        (rings[-1], profile[-1][1], top, True),
+    ):
+        if wanted:
+            vertices.append(np.array([[0.0, y, 0.0]]))
+            pair = (ring, np.roll(ring, -1)) if is_top else (np.roll(ring, -1), ring)
+            faces.append(np.stack([np.full(SEGMENTS, count), *pair], 1))
+            count += 1
+    tri = np.concatenate(faces) if faces else np.zeros((0, 3), dtype=np.int64)
+    return np.concatenate(vertices), tri[_distinct(tri)].astype(np.int64)
+
+
+def _cylinder(node: _Node) -> tuple[np.ndarray, np.ndarray]:
+    r, h = _vector(node, "radius", (1.0,))[0], _vector(node, "height", (2.0,))[0]
+    return _lathe(
+        [(r, -h / 2), (r, h / 2)],
+        _flag(node, "bottom", True),
+        _flag(node, "top", True),
+        _flag(node, "side", True),
+    )
+
+
+def _cone(node: _Node) -> tuple[np.ndarray, np.ndarray]:
+    r, h = _vector(node, "bottomRadius", (1.0,))[0], _vector(node, "height", (2.0,))[0]
+    return _lathe(
+        [(r, -h / 2), (0.0, h / 2)], _flag(node, "bottom", True), False, _flag(node, "side", True)
+    )
+
+
+def _sphere(node: _Node) -> tuple[np.ndarray, np.ndarray]:
+    r = _vector(node, "radius", (1.0,))[0]
+    phi = np.pi * np.arange(SEGMENTS // 2, -1, -1) / (SEGMENTS // 2)
+    radii = r * np.sin(phi)
+    radii[[0, -1]] = 0.0
+    return _lathe(list(zip(radii, r * np.cos(phi), strict=True)), False, False)
+
+
+_GEOMETRY = {
+    "IndexedFaceSet": _indexed_face_set,
+    "ElevationGrid": _elevation_grid,
+    "Box": _box,
+    "Cylinder": _cylinder,
+    "Cone": _cone,
+    "Sphere": _sphere,
+}
+
+
+def _reflectivity(shape: _Node) -> float:
+    """Mean Material diffuseColor (VRML default 0.8); 0.5 without Appearance or Material."""
+    appearance = shape.fields.get("appearance")
+    material = appearance.fields.get("material") if isinstance(appearance, _Node) else None
+    if not isinstance(material, _Node):
+        return 0.5
+    return float(_vector(material, "diffuseColor", (0.8, 0.8, 0.8)).mean())
+
+
+class _Walker:
+    """Walks root nodes with the current transform and collects one MeshPart per Shape."""
+
+    def __init__(self, stem: str, stack: tuple[Path, ...]) -> None:
+        self.stem, self.stack = stem, list(stack)
+        self.parts: list[MeshPart] = []
+        self._meshes: dict[int, tuple[np.ndarray, np.ndarray] | None] = {}
+        self._inlines: dict[Path, list[_Node]] = {}
+
+    def walk(self, nodes: list[_Node], matrix: np.ndarray, name: str | None) -> list[MeshPart]:
+        """Visit ``nodes`` under ``matrix``; ``name`` is the nearest ancestor DEF name."""
+        for node in nodes:
+            self.visit(node, matrix, name)
+        return self.parts
+
+    def visit(self, node: _Node, matrix: np.ndarray, name: str | None) -> None:
+        """Dispatch on the node type; unknown nodes are skipped."""
+        inner = node.def_name or name
+        if node.type in _GROUPS:
+            if node.type == "Transform":
+                matrix = matrix @ _transform_matrix(node)
+            self.walk(_children(node, "children"), matrix, inner)
+        elif node.type in ("Switch", "LOD"):
+            key = "choice" if node.type == "Switch" else "level"
+            options = _children(node, key if key in node.fields else "children")
+            pick = int(_vector(node, "whichChoice", (-1,))[0]) if node.type == "Switch" else 0
+            if 0 <= pick < len(options):
+                self.visit(options[pick], matrix, inner)
+        elif node.type == "Shape":
+            self.shape(node, matrix, name)
+        elif node.type == "Inline":
+            self.inline(node, matrix, inner)
+        else:
+            log.debug("%s:%d: skipping %s node", node.src.name, node.src.line(node.pos), node.type)
+
+    def shape(self, node: _Node, matrix: np.ndarray, name: str | None) -> None:
+        """Append the Shape's geometry as a MeshPart in world coordinates."""
+        geometry = node.fields.get("geometry")
+        if not isinstance(geometry, _Node):
+            return
+        if id(geometry) not in self._meshes:
+            build = _GEOMETRY.get(geometry.type)
+            if build is None:
+                log.debug("skipping unsupported geometry %s", geometry.type)
+            self._meshes[id(geometry)] = None if build is None else build(geometry)
+        mesh = self._meshes[id(geometry)]
+        if mesh is None or not len(mesh[1]):
+            return
+        vertices = mesh[0] @ matrix[:3, :3].T + matrix[:3, 3]
+        faces = mesh[1][:, ::-1] if np.linalg.det(matrix[:3, :3]) < 0 else mesh[1]
+        name = node.def_name or geometry.def_name or name or f"{self.stem}_{len(self.parts)}"
+        self.parts.append(
+            MeshPart(vertices, np.array(faces, dtype=np.int64), _reflectivity(node), name)
+        )
+
+    def inline(self, node: _Node, matrix: np.ndarray, name: str | None) -> None:
+        """Walk the file named by the Inline's ``url``, relative to the including file."""
+        urls = node.fields.get("url", [])
+        urls = [urls] if isinstance(urls, str) else list(urls)
+        path = next(filter(None, (_local_path(str(u), node.base_dir) for u in urls)), None)
+        if path is None:
+            raise node.src.error(
+                node.pos,
+                f"Inline file {', '.join(map(repr, urls)) or '(none)'}"
+                f" not found next to {node.src.name}; "
+                "put it there or fix the url",
+            )
+        if path in self.stack:
+            raise node.src.error(
+                node.pos, f"Inline '{path.name}' includes itself; remove the cycle"
+            )
+        if path not in self._inlines:
+            self._inlines[path] = _parse_file(path, tuple(self.stack))[0]
+        self.stack.append(path)
+        self.walk(self._inlines[path], matrix, name)
+        self.stack.pop()
+
+
+def parse_vrml(text: str, base_dir: Path | None = None) -> list[MeshPart]:
+    """Meshes of a VRML97 text.
+
+    Parameters
+    ----------
+    text : str
+        File contents, starting with ``#VRML V2.0 utf8``.
+    base_dir : Path, optional
+        Folder that relative Inline/EXTERNPROTO urls start from (default: working directory).
+
+    Returns
+    -------
+    list of MeshPart
+        One part per rendered Shape with triangles: vertices (n, 3) float64 in world metres
+        (all transforms applied), faces (m, 3) int64 counter-clockwise, reflectivity the mean
+        Material diffuseColor, name the nearest DEF name (Shape, geometry, ancestor) else
+        ``vrml_<k>``.
+
+    Raises
+    ------
+    SonarRasterError
+        On malformed text (message ``<string>:line: ...``), a missing Inline file, an
+        unresolvable EXTERNPROTO or an out-of-range coordIndex.
+    """
+    roots = _Parser(_Source("<string>", text), base_dir, ()).parse()
+    return _Walker("vrml", ()).walk(roots, np.eye(4), None)
+
+
+def load_vrml(path: str | Path) -> list[MeshPart]:
+    """Meshes of a VRML97 file (``.wrl``, optionally gzipped).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file; Inline and EXTERNPROTO urls are resolved relative to its folder.
+
+    Returns
+    -------
+    list of MeshPart
+        As :func:`parse_vrml`; unnamed parts are called ``<file stem>_<k>``.
+
+    Raises
+    ------
+    SonarRasterError
+        If the file is missing or malformed (message ``<file name>:line: ...``).
+    """
+    path = Path(path).resolve()
+    roots, _ = _parse_file(path, ())
+    return _Walker(path.stem, (path,)).walk(roots, np.eye(4), None)

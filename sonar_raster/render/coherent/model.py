@@ -1,0 +1,713 @@
+"""Coherent model (the seed's Eq. 10): point scatterers, a transmit pulse and a matched filter.
+
+Mesh surfaces are sampled into point scatterers (facets of area a² about ``spacing`` apart,
+jittered; see :mod:`.scatter`). Per ping, a visible scatterer k at distance
+``r_k`` from the transducer contributes the complex baseband amplitude
+
+``c_k = (a_k² / λ) · sqrt(R_k · Φ(α_k − axis) · Φ_h(ψ_k)) · L(n̂_k · r̂_k) / r_k² ·
+exp(−4πi r_k / λ)``
+
+delayed by ``2 r_k / c``, where λ is the centre wavelength, ``Φ`` the sonar's two-way vertical
+beam pattern (an intensity gain, so the amplitude carries its square root), ``Φ_h`` the two-way
+horizontal beam (:class:`HorizontalBeam`), and ``L`` the scattering law: ``"lambert"`` (default,
+``L = sqrt(cos θ)``) gives a mean speckle intensity ``Σ Φ R cos θ dA`` per bin, the same integral
+the raster and reference renderers compute, so the models compare pixel by pixel; ``"eq10"``
+(``L = cos θ``) is the seed's rigid Kirchhoff obliquity (mean intensity ∝ cos² θ). R is the
+intensity reflectivity of Eq. 11, hence ``sqrt(R)`` in the amplitude. The echo is matched
+filtered (pulse compression, :class:`Pulse`), its envelope power ``|y|²`` is averaged over each
+range bin's samples (an integral per bin, as the raster image is), and spherical spreading is
+kept (intensity ∝ 1/r⁴; no TVG): :func:`to_raster_units` removes it for comparisons.
+
+Geometry matches :mod:`..reference`: the trajectory is split into the same straight
+segments, a scatterer's side is the sign of its across-track coordinate, its visibility is one
+embree ray cast from the point of the track abeam of it to its facet centroid (the first hit
+must be its own face or not nearer), and image bins are ``[k, k+1) · range_bin`` of slant range.
+The echo itself uses the exact distance from each ping's position, so phases are right.
+
+Scatterers are generated per block of pings, only inside the block's reach (the horizontal
+beam's along-track footprint at the maximum range), in chunks of ``chunk``; memory is bounded by
+the chunk size and the block's fine delay grid (see ``peak_memory_bytes`` in the metadata).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from ...errors import SonarRasterError
+from ...image import SonarImage
+from ...scene import Scene
+from ...sonar import SIDES, Sonar
+from ...trajectory import Trajectory, heading_axes
+from .echo import KERNEL_TAPS, EchoGrid
+from .pulse import Pulse
+from .scatter import JITTER_CLIP, Scatterers, ScatterSurface, generate, scatter_surface
+
+__all__ = [
+    "Echo",
+    "HorizontalBeam",
+    "PointScatterers",
+    "Pulse",
+    "ping_echo",
+    "render_coherent",
+    "to_raster_units",
+]
+
+log = logging.getLogger(__name__)
+
+METHODS = ("fast", "direct")
+LAWS = ("lambert", "eq10")
+#: Scatterers beyond ``max_range`` + this many range bins are left out (their compressed main
+#: lobes still reach the last bins).
+RANGE_MARGIN_BINS = 3.0
+#: Fine-grid bytes one ping block may hold (sets the pings per block).
+_BLOCK_BYTES = 96 << 20
+#: Argument of ``np.sinc`` where ``sinc⁴ = 1/2`` (half-power point of a two-way sinc pattern).
+_SINC4_HALF = 0.31911
+#: Bytes per scatterer and per (scatterer, ping) pair in flight (for the memory estimate).
+_SCATTERER_BYTES = 400
+_PAIR_BYTES = (4 * KERNEL_TAPS + 24) * 8
+
+
+@dataclass(frozen=True)
+class HorizontalBeam:
+    """Two-way along-track beam pattern ``Φ_h(u)`` of the direction cosine ``u = sin ψ``.
+
+    ψ is the angle between the direction to the scatterer and the ping's across-track plane.
+
+    Attributes
+    ----------
+    width : float
+        Full width at half power of the two-way pattern, radians (small-angle: in ``u``).
+    kind : {"gaussian", "sinc"}
+        ``exp(−4 ln 2 (u / width)²)``, cut at ``|u| = 2 width`` (gain 1.5e-5); or a uniform
+        line aperture, ``sinc⁴(x₀ 2u / width)`` with ``sinc⁴(x₀) = 1/2``, cut at its fourth null.
+    """
+
+    width: float
+    kind: str = "gaussian"
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.width, (int, float)) and 0 < self.width < 1):
+            raise SonarRasterError(
+                f"horizontal beam width must be in (0, 1) rad, got {self.width!r}"
+            )
+        if self.kind not in ("gaussian", "sinc"):
+            raise SonarRasterError(
+                f"horizontal beam kind must be gaussian or sinc, got {self.kind!r}"
+            )
+
+    @classmethod
+    def for_track(cls, sonar: Sonar, trajectory: Trajectory) -> HorizontalBeam:
+        """Default: a Gaussian whose half-power footprint at mid range is one ping spacing."""
+        return cls(min(trajectory.typical_spacing / (0.5 * sonar.max_range), 0.5))
+
+    @property
+    def cutoff(self) -> float:
+        """Largest ``|u|`` with a non-zero gain."""
+        if self.kind == "gaussian":
+            return min(2.0 * self.width, 0.99)
+        return min(4.0 * self.width / (2.0 * _SINC4_HALF), 0.99)
+
+    def __call__(self, u: np.ndarray) -> np.ndarray:
+        """Two-way intensity gain at direction cosines ``u`` (any shape)."""
+        u = np.asarray(u, dtype=np.float64)
+        if self.kind == "gaussian":
+            g = np.exp(-4.0 * math.log(2.0) * np.minimum((u / self.width) ** 2, 16.0))
+        else:
+            g = np.sinc(_SINC4_HALF * 2.0 * u / self.width) ** 4
+        return np.where(np.abs(u) <= self.cutoff, g, 0.0)
+
+    def footprint(self, slant_range: np.ndarray | float) -> np.ndarray:
+        """Along-track integral ``∫ Φ_h dy`` at a slant range, metres (small-angle)."""
+        r = np.asarray(slant_range, dtype=np.float64)
+        if self.kind == "gaussian":
+            return r * self.width * math.sqrt(math.pi / (4.0 * math.log(2.0)))
+        return r * self.width / (2.0 * _SINC4_HALF) * (2.0 / 3.0)
+
+    def to_dict(self) -> dict:
+        """Plain description for metadata."""
+        return {"width_rad": self.width, "kind": self.kind}
+
+
+@dataclass(frozen=True)
+class PointScatterers:
+    """Explicit point scatterers (world metres), e.g. point targets for :func:`ping_echo`.
+
+    Attributes
+    ----------
+    positions : ndarray, shape (k, 3)
+        Positions, metres.
+    normals : ndarray, shape (k, 3)
+        Unit normals.
+    areas : ndarray, shape (k,)
+        Facet areas a², m².
+    reflectivity : ndarray, shape (k,)
+        R (intensity reflectivity).
+    """
+
+    positions: np.ndarray
+    normals: np.ndarray
+    areas: np.ndarray
+    reflectivity: np.ndarray = field(default_factory=lambda: np.ones(1))
+
+    def __post_init__(self) -> None:
+        p = np.asarray(self.positions, dtype=np.float64).reshape(-1, 3)
+        n = np.broadcast_to(np.asarray(self.normals, dtype=np.float64), p.shape).copy()
+        a = np.broadcast_to(np.asarray(self.areas, dtype=np.float64), p.shape[:1]).copy()
+        r = np.broadcast_to(np.asarray(self.reflectivity, dtype=np.float64), p.shape[:1]).copy()
+        norm = np.linalg.norm(n, axis=1)
+        if not (np.all(np.isfinite(p)) and np.all(norm > 0) and np.all(a >= 0) and np.all(r >= 0)):
+            raise SonarRasterError(
+                "point scatterers need finite positions, non-zero normals, "
+                "and areas and reflectivities >= 0"
+            )
+        object.__setattr__(self, "positions", p)
+        object.__setattr__(self, "normals", n / norm[:, None])
+        object.__setattr__(self, "areas", a)
+        object.__setattr__(self, "reflectivity", r)
+
+
+@dataclass(frozen=True)
+class Echo:
+    """One ping's compressed echo per side.
+
+    Attributes
+    ----------
+    ranges : ndarray, shape (n_bins * M,)
+        Slant range of each fine sample (bin midpoints of M equal parts per bin), metres.
+    signal : dict of str to ndarray, shape (n_bins * M,), complex128
+        Matched-filter output (complex baseband) per side.
+    intensity : dict of str to ndarray, shape (n_bins,)
+        ``|signal|²`` averaged over each range bin, as in the image.
+    """
+
+    ranges: np.ndarray
+    signal: dict[str, np.ndarray]
+    intensity: dict[str, np.ndarray]
+
+
+@dataclass(frozen=True)
+class _Model:
+    """What every (scatterer, ping) pair needs."""
+
+    sonar: Sonar
+    beam_h: HorizontalBeam | None
+    law: str
+    wavelength: float
+    r_limit: float
+    # With random phases (jitter > 0) echo energies add, so a facet's energy must grow with its
+    # area, not its area squared: amplitudes use sqrt(a_k * area_ref), area_ref = spacing².
+    # 0 keeps Eq. 10's a_k (smooth, coherent surfaces).
+    area_ref: float = 0.0
+
+    @property
+    def u_cut(self) -> float:
+        return self.beam_h.cutoff if self.beam_h is not None else 1.0
+
+
+def render_coherent(
+    scene: Scene,
+    sonar: Sonar,
+    trajectory: Trajectory,
+    *,
+    pulse: Pulse | None = None,
+    spacing_wavelengths: float = 0.25,
+    seed: int = 0,
+    method: str = "fast",
+    chunk: int = 1 << 16,
+    horizontal_beam: HorizontalBeam | None = None,
+    jitter_wavelengths: float = 0.5,
+    scattering: str = "lambert",
+    samples_per_bin: int | None = None,
+    progress: bool = False,
+) -> SonarImage:
+    """Render raw side-scan intensity with the coherent point-scatterer model (Eq. 10).
+
+    Parameters
+    ----------
+    scene, sonar, trajectory
+        As for :func:`sonar_raster.render.reference.render_reference`.
+    pulse : Pulse, optional
+        Transmit pulse; default :meth:`Pulse.for_range_bin` (a Taylor-weighted chirp whose
+        ``c / (2B)`` is one range bin).
+    spacing_wavelengths : float
+        Scatterer spacing s in wavelengths (default 1/4, the seed's sub-wavelength sampling).
+        Coarser spacing is faster (cost ∝ 1/s²) and keeps the mean level of a rough surface in
+        raster units, but smooth surfaces then alias (their coherent sums need s <= λ/4).
+    seed : int
+        Seed of the position jitter (a pure function of seed, face and facet).
+    method : {"fast", "direct"}
+        "fast": deposit on a fine delay grid and one FFT convolution per ping; "direct": the
+        frequency-domain sum of Eq. 10 at every in-band frequency (exact; tiny scenes only).
+    chunk : int
+        Scatterers per vectorised chunk (memory ~1.5 kB each); results do not depend on it.
+    horizontal_beam : HorizontalBeam, optional
+        Along-track beam; default :meth:`HorizontalBeam.for_track`.
+    jitter_wavelengths : float
+        Rms scatterer displacement per axis in wavelengths (isotropic Gaussian, truncated at 4σ).
+        The default 1/2 makes the two-way phases uniformly random at every incidence (fully
+        developed speckle on every surface); 0 keeps scatterers on their facets (smooth,
+        specular surfaces).
+    scattering : {"lambert", "eq10"}
+        Scattering law of the amplitude (module docstring).
+    samples_per_bin : int, optional
+        Fine delay samples per range bin (default: four times the band's Nyquist rate, >= 4).
+    progress : bool
+        Show a progress bar over the ping blocks.
+
+    Returns
+    -------
+    SonarImage
+        float32 (pings, ``sonar.n_bins``) per side: bin-averaged matched-filter envelope power,
+        with spreading (∝ r⁻⁴), in Eq. 10 units (see :func:`to_raster_units`). ``metadata``:
+        renderer "coherent", settings, ``n_scatterers`` (inside reach, summed over ping blocks),
+        ``n_rays``, ``n_visible``, ``n_pairs`` (scatterer-ping terms), ``facet_area_m2``,
+        ``peak_memory_bytes`` (estimate), ``time_s``.
+
+    Raises
+    ------
+    TypeError
+        If an argument has the wrong type.
+    SonarRasterError
+        On an invalid setting, or when no ray caster is available.
+    """
+    from ..reference import _check_inputs, _frame, _ray_caster, _Surface
+
+    _check_inputs(scene, sonar, trajectory)
+    pulse = Pulse.for_range_bin(sonar.range_bin, sonar.sound_speed) if pulse is None else pulse
+    beam_h = (
+        HorizontalBeam.for_track(sonar, trajectory) if horizontal_beam is None else horizontal_beam
+    )
+    _check_settings(sonar, pulse, beam_h, method, scattering)
+    spacing = _positive("spacing_wavelengths", spacing_wavelengths) * sonar.wavelength
+    jitter = _non_negative("jitter_wavelengths", jitter_wavelengths) * sonar.wavelength
+    if not (isinstance(chunk, (int, np.integer)) and chunk >= 1):
+        raise SonarRasterError(f"chunk must be a positive integer, got {chunk!r}")
+    start = time.perf_counter()
+    grid = _grid(sonar, pulse, samples_per_bin)
+    local = scene.bounds.mean(axis=0)
+    surface = scatter_surface(scene, local, spacing)
+    sides = tuple(s for s in SIDES if s in sonar.sides)
+    work = _Work(
+        surface=surface,
+        caster=_ray_caster(scene.vertices - local, scene.faces),
+        ray_surface=_Surface(surface.tri, surface.normal, surface.n_sub, surface.facet_area),
+        grid=grid,
+        model=replace(
+            _model(sonar, beam_h, scattering), area_ref=spacing**2 if jitter > 0 else 0.0
+        ),
+        sides=sides,
+        jitter=jitter,
+        seed=int(seed),
+        chunk=int(chunk),
+        method=method,
+    )
+    out = {side: np.zeros((trajectory.n_pings, sonar.n_bins)) for side in sides}
+    stats = _Stats()
+    block = max(1, _BLOCK_BYTES // grid.nbytes(len(sides)))
+    blocks = []
+    for segment in trajectory.segments(sonar.range_bin / 4.0):
+        frame = _frame(segment, trajectory, local, spacing)
+        if not np.allclose(frame.axes, frame.fan_axes, atol=1e-9):
+            raise SonarRasterError(
+                "the coherent model does not model crab or pitch yet (heading off the course, "
+                "or pitch not 0); use the raster model for this track"
+            )
+        sl = slice(segment.first, segment.first + segment.count)
+        pings = (trajectory.positions[sl] - local - frame.origin) @ frame.axes.T
+        for j0 in range(0, segment.count, block):
+            j1 = min(segment.count, j0 + block)
+            blocks.append((frame, segment.first + j0, pings[j0:j1], frame.roll[j0:j1]))
+    if progress:
+        from tqdm import tqdm
+
+        blocks = tqdm(blocks, desc="coherent", unit="block", disable=None, leave=False)
+    for frame, first, pings, roll in blocks:
+        power = _render_block(work, frame, pings, roll, stats)
+        for slot, side in enumerate(sides):
+            out[side][first : first + len(pings)] = power[:, slot]
+    elapsed = time.perf_counter() - start
+    log.info(
+        "coherent: %d scatterers, %d visible, %d pairs in %.2f s (%.3g scatterers/s)",
+        stats.scatterers,
+        stats.visible,
+        stats.pairs,
+        elapsed,
+        stats.scatterers / max(elapsed, 1e-9),
+    )
+    metadata = {
+        "renderer": "coherent",
+        "method": method,
+        "pulse": pulse.to_dict(),
+        "horizontal_beam": beam_h.to_dict(),
+        "scattering": scattering,
+        "spacing_wavelengths": float(spacing_wavelengths),
+        "spacing_m": spacing,
+        "jitter_wavelengths": float(jitter_wavelengths),
+        "seed": int(seed),
+        "chunk": int(chunk),
+        "wavelength_m": sonar.wavelength,
+        "samples_per_bin": grid.samples_per_bin,
+        "ping_width_m": trajectory.typical_spacing,
+        # The a² that to_raster_units divides by: spacing² for random-phase scatterers.
+        "facet_area_m2": work.model.area_ref or stats.facet_area(),
+        "n_scatterers": stats.scatterers,
+        "n_rays": stats.rays,
+        "n_visible": stats.visible,
+        "n_pairs": stats.pairs,
+        "peak_memory_bytes": _memory_estimate(
+            surface, grid, len(sides), block, int(chunk), work.model, trajectory
+        ),
+        "time_s": elapsed,
+        "units": "Eq. 10 intensity |sum a^2/lambda ...|^2 with 1/r^4 spreading (to_raster_units)",
+    }
+    images = {side: a.astype(np.float32) for side, a in out.items()}
+    return SonarImage(sides=images, sonar=sonar, metadata=metadata)
+
+
+@dataclass
+class _Stats:
+    scatterers: int = 0
+    rays: int = 0
+    visible: int = 0
+    pairs: int = 0
+    area: float = 0.0
+    area2: float = 0.0
+
+    def facet_area(self) -> float:
+        """Area-weighted mean facet area of the visible scatterers, m² (0 if none)."""
+        return self.area2 / self.area if self.area > 0 else 0.0
+
+
+@dataclass(frozen=True)
+class _Work:
+    """Everything a ping block needs besides its pings."""
+
+    surface: ScatterSurface
+    caster: Any
+    ray_surface: Any
+    grid: EchoGrid
+    model: _Model
+    sides: tuple[str, ...]
+    jitter: float
+    seed: int
+    chunk: int
+    method: str
+
+
+def _render_block(
+    work: _Work, frame: Any, pings: np.ndarray, roll: np.ndarray, stats: _Stats
+) -> np.ndarray:
+    """Intensity of a block of pings of one segment, shape (pings, sides, bins).
+
+    ``pings`` are the block's ping positions in the segment frame, ``roll`` their roll angles.
+    Scatterers are generated only inside the block's reach, culled, ray-tested, and their
+    terms for every ping of the block deposited on the block's fine grid.
+    """
+    grid, sides = work.grid, work.sides
+    acc = grid.accumulator(len(pings) * len(sides), work.method)
+    bounds, off = _block_bounds(work.model, pings, sides, work.jitter)
+    for sc in generate(
+        work.surface, frame.axes, frame.origin, bounds, work.chunk, work.jitter, work.seed
+    ):
+        sc = _cull(sc, work.model, sides, JITTER_CLIP * math.sqrt(3.0) * work.jitter + off, stats)
+        if len(sc.face) == 0:
+            continue
+        sc = _visible_only(sc, work.caster, work.ray_surface, frame, stats)
+        row, x, c = _pairs(sc, pings, roll, sides, work.model, grid, off)
+        stats.pairs += len(row)
+        grid.add(acc, row, x, c)
+    return grid.intensity(acc).reshape(len(pings), len(sides), grid.n_bins)
+
+
+def _check_settings(
+    sonar: Sonar, pulse: Pulse, beam_h: HorizontalBeam | None, method: str, scattering: str
+) -> None:
+    if not isinstance(sonar, Sonar):
+        raise TypeError(f"sonar must be a Sonar, got {type(sonar).__name__}")
+    if not isinstance(pulse, Pulse):
+        raise TypeError(f"pulse must be a Pulse, got {type(pulse).__name__}")
+    if beam_h is not None and not isinstance(beam_h, HorizontalBeam):
+        raise TypeError(f"horizontal_beam must be a HorizontalBeam, got {type(beam_h).__name__}")
+    if method not in METHODS:
+        raise SonarRasterError(f"method must be one of {METHODS}, got {method!r}")
+    if scattering not in LAWS:
+        raise SonarRasterError(f"scattering must be one of {LAWS}, got {scattering!r}")
+    if pulse.band_hz >= 2.0 * sonar.frequency_hz:
+        raise SonarRasterError(
+            f"the pulse band ({pulse.band_hz:.4g} Hz) must be below twice the centre frequency "
+            f"({sonar.frequency_hz:.4g} Hz); use a larger range bin or a higher frequency"
+        )
+
+
+def _positive(name: str, value: float) -> float:
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+        raise SonarRasterError(f"{name} must be a positive number, got {value!r}")
+    return float(value)
+
+
+def _non_negative(name: str, value: float) -> float:
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+        raise SonarRasterError(f"{name} must be a number >= 0, got {value!r}")
+    return float(value)
+
+
+def _grid(sonar: Sonar, pulse: Pulse, samples_per_bin: int | None) -> EchoGrid:
+    if samples_per_bin is not None and not (
+        isinstance(samples_per_bin, (int, np.integer)) and 1 <= samples_per_bin <= 1024
+    ):
+        raise SonarRasterError(
+            f"samples_per_bin must be an integer in [1, 1024], got {samples_per_bin!r}"
+        )
+    return EchoGrid.make(
+        sonar.range_bin,
+        sonar.n_bins,
+        sonar.sound_speed,
+        pulse.compressed,
+        pulse.band_hz,
+        0.5 * sonar.sound_speed * pulse.duration_s,
+        samples_per_bin,
+    )
+
+
+def _model(sonar: Sonar, beam_h: HorizontalBeam | None, law: str) -> _Model:
+    r_limit = sonar.n_bins * sonar.range_bin + RANGE_MARGIN_BINS * sonar.range_bin
+    return _Model(sonar, beam_h, law, sonar.wavelength, r_limit)
+
+
+def _block_bounds(
+    model: _Model, pings: np.ndarray, sides: tuple[str, ...], jitter: float
+) -> tuple[np.ndarray, float]:
+    """Box (frame coordinates) of facet centroids that can reach a block of pings.
+
+    Returns the box and the pings' largest distance from the segment's line (metres).
+    """
+    off = float(np.max(np.hypot(pings[:, 1], pings[:, 2]), initial=0.0))
+    margin = JITTER_CLIP * jitter * math.sqrt(3.0) + 1e-6
+    r = model.r_limit + off + margin
+    u = model.u_cut
+    reach = r * u / math.sqrt(1.0 - u * u) + off + margin
+    t_lo, t_hi = float(pings[:, 0].min()), float(pings[:, 0].max())
+    x_lo = -r if "port" in sides else -margin
+    x_hi = r if "starboard" in sides else margin
+    return np.array([[t_lo - reach, t_hi + reach], [x_lo, x_hi], [-r, r]]), off
+
+
+def _cull(
+    sc: Scatterers, model: _Model, sides: tuple[str, ...], slack: float, stats: _Stats
+) -> Scatterers:
+    """Keep scatterers on an imaged side, within range reach, facing the track."""
+    _, x, v = sc.nominal.T
+    side_ok = np.where(x > 0, "starboard" in sides, "port" in sides) & (x != 0)
+    near = np.hypot(x, v) < model.r_limit + slack
+    keep = side_ok & near
+    stats.scatterers += int(np.count_nonzero(keep))
+    facing = -(x * sc.normal[:, 1] + v * sc.normal[:, 2]) > 0
+    return sc.take(np.flatnonzero(keep & facing))
+
+
+def _visible_only(sc: Scatterers, caster, ray_surface, frame, stats: _Stats) -> Scatterers:
+    """One ray per scatterer from the track point abeam of it to its facet centroid."""
+    from ..reference import _visible
+
+    t, x, v = sc.nominal.T
+    r = np.hypot(x, v)
+    origins = frame.origin + t[:, None] * frame.along
+    dirs = (x[:, None] * frame.starboard + v[:, None] * frame.up) / r[:, None]
+    vis = _visible(caster, ray_surface, origins, dirs, r, sc.face)
+    stats.rays += len(vis)
+    stats.visible += int(vis.sum())
+    out = sc.take(np.flatnonzero(vis))
+    stats.area += float(out.facet_area.sum())
+    stats.area2 += float((out.facet_area**2).sum())
+    return out
+
+
+def _pairs(
+    sc: Scatterers,
+    pings: np.ndarray,
+    roll: np.ndarray,
+    sides: tuple[str, ...],
+    model: _Model,
+    grid: EchoGrid,
+    off: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(row, grid position, complex amplitude) of every scatterer-ping term of a block."""
+    order = np.argsort(pings[:, 0], kind="stable")
+    tp = pings[order, 0]
+    u = model.u_cut
+    rho = np.hypot(sc.position[:, 1], sc.position[:, 2]) + off
+    reach = rho * u / math.sqrt(1.0 - u * u) + off + 1e-9
+    t = sc.position[:, 0]
+    lo = np.searchsorted(tp, t - reach, side="left")
+    hi = np.searchsorted(tp, t + reach, side="right")
+    counts = hi - lo
+    k = np.repeat(np.arange(len(t)), counts)
+    j = order[lo[k] + (np.arange(len(k)) - (np.cumsum(counts) - counts)[k])]
+    slot = (
+        (sc.nominal[:, 1] > 0).astype(np.int64) if len(sides) == 2 else np.zeros(len(t), np.int64)
+    )
+    sign = np.where(sc.nominal[:, 1] > 0, 1.0, -1.0)
+    r, c, ok = _amplitudes(sc, k, pings[j], roll[j], sign[k], model)
+    row = j[ok] * len(sides) + slot[k[ok]]
+    return row, grid.position(r[ok]), c[ok]
+
+
+def _amplitudes(
+    sc: Scatterers | PointScatterers,
+    k: np.ndarray,
+    ping: np.ndarray,
+    roll: np.ndarray,
+    sign: np.ndarray,
+    model: _Model,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Eq. 10 terms of pairs (scatterer ``k``, ping at ``ping`` in frame coordinates).
+
+    Returns the distance r, the complex amplitude and a mask of the terms that count.
+    """
+    position = sc.position if isinstance(sc, Scatterers) else sc.positions
+    normal = sc.normal if isinstance(sc, Scatterers) else sc.normals
+    area = sc.facet_area if isinstance(sc, Scatterers) else sc.areas
+    d = position[k] - ping
+    r = np.sqrt(np.einsum("ij,ij->i", d, d))
+    safe = np.maximum(r, 1e-12)
+    u = d[:, 0] / safe
+    cos_inc = -np.einsum("ij,ij->i", normal[k], d) / safe
+    ok = (r < model.r_limit) & (np.abs(u) <= model.u_cut) & (cos_inc > 0) & (r > 1e-9)
+    gain = sc.reflectivity[k] * (model.beam_h(u) if model.beam_h is not None else 1.0)
+    beam = model.sonar.beam
+    if not beam.is_uniform:
+        depression = np.arctan2(-d[:, 2], np.abs(d[:, 1]))
+        gain = gain * beam(depression - model.sonar.tilt - sign * roll)
+    cos_inc = np.where(ok, cos_inc, 0.0)
+    law = np.sqrt(cos_inc) if model.law == "lambert" else cos_inc
+    size = np.sqrt(area[k] * model.area_ref) if model.area_ref > 0 else area[k]
+    amp = size / model.wavelength * np.sqrt(gain) * law / (safe * safe)
+    c = amp * np.exp(-4j * math.pi / model.wavelength * r)
+    return r, c, ok & (amp > 0)
+
+
+def _memory_estimate(
+    surface: ScatterSurface,
+    grid: EchoGrid,
+    n_sides: int,
+    block: int,
+    chunk: int,
+    model: _Model,
+    trajectory: Trajectory,
+) -> int:
+    """Rough peak bytes: surface and ray-caster tables, one block's grid, one chunk in flight."""
+    spacing = trajectory.typical_spacing
+    u = model.u_cut
+    reach = model.r_limit * u / math.sqrt(1.0 - u * u)
+    pings_per_scatterer = min(block, int(2 * reach / spacing) + 2)
+    per_chunk = chunk * (_SCATTERER_BYTES + pings_per_scatterer * _PAIR_BYTES)
+    tables = len(surface.n_sub) * (200 + 150)  # surface arrays, embree BVH
+    return int(tables + grid.nbytes(block * n_sides) + per_chunk)
+
+
+def ping_echo(
+    points: PointScatterers,
+    sonar: Sonar,
+    position: np.ndarray,
+    heading: float = 0.0,
+    *,
+    roll: float = 0.0,
+    pulse: Pulse | None = None,
+    horizontal_beam: HorizontalBeam | None = None,
+    scattering: str = "lambert",
+    method: str = "fast",
+    samples_per_bin: int | None = None,
+) -> Echo:
+    """Compressed echo of explicit point scatterers for one ping (no visibility test).
+
+    Parameters
+    ----------
+    points : PointScatterers
+        The scatterers, all taken as visible.
+    sonar : Sonar
+        Range sampling, beam, tilt, sides, frequency.
+    position : ndarray, shape (3,)
+        Transducer position, world metres.
+    heading : float
+        Compass heading, radians (0 = +y).
+    roll : float
+        Roll, radians, positive starboard down.
+    pulse, scattering, method, samples_per_bin
+        As for :func:`render_coherent`.
+    horizontal_beam : HorizontalBeam, optional
+        Along-track beam; None applies none (every along-track angle has gain 1).
+
+    Returns
+    -------
+    Echo
+    """
+    if not isinstance(points, PointScatterers):
+        raise TypeError(f"points must be PointScatterers, got {type(points).__name__}")
+    pulse = Pulse.for_range_bin(sonar.range_bin, sonar.sound_speed) if pulse is None else pulse
+    _check_settings(sonar, pulse, horizontal_beam, method, scattering)
+    grid = _grid(sonar, pulse, samples_per_bin)
+    model = _model(sonar, horizontal_beam, scattering)
+    along, starboard = heading_axes(float(heading))
+    axes = np.stack([along, starboard, np.cross(starboard, along)])
+    local = PointScatterers(
+        (points.positions - np.asarray(position, dtype=np.float64)) @ axes.T,
+        points.normals @ axes.T,
+        points.areas,
+        points.reflectivity,
+    )
+    sides = tuple(s for s in SIDES if s in sonar.sides)
+    x = local.positions[:, 1]
+    on_side = np.where(x > 0, "starboard" in sides, "port" in sides) & (x != 0)
+    k = np.flatnonzero(on_side)
+    sign = np.where(x[k] > 0, 1.0, -1.0)
+    r, c, ok = _amplitudes(
+        local, k, np.zeros((len(k), 3)), np.full(len(k), float(roll)), sign, model
+    )
+    slot = (x[k] > 0).astype(np.int64) if len(sides) == 2 else np.zeros(len(k), np.int64)
+    acc = grid.accumulator(len(sides), method)
+    grid.add(acc, slot[ok], grid.position(r[ok]), c[ok])
+    signal = grid.signal(acc)
+    power = signal.real**2 + signal.imag**2
+    binned = power.reshape(len(sides), sonar.n_bins, grid.samples_per_bin).mean(axis=2)
+    return Echo(
+        ranges=grid.image_ranges,
+        signal={side: signal[i] for i, side in enumerate(sides)},
+        intensity={side: binned[i] for i, side in enumerate(sides)},
+    )
+
+
+def to_raster_units(image: SonarImage) -> SonarImage:
+    """Convert a coherent image to the raster's units (``Σ Φ R cos θ dA`` per bin, m², K = 1).
+
+    Multiplies bin k (centre range ``r_k``) by ``r_k⁴ λ² / a² · w / F(r_k)``: undoes the
+    spherical spreading and Eq. 10's ``a⁴ / λ²`` per scatterer (``a²`` the area-weighted mean
+    facet area), and rescales the horizontal beam's footprint ``F(r) = ∫ Φ_h dy`` to the raster's
+    ping width ``w``. For a rough surface (fully developed speckle) with the "lambert" law, the
+    expected result equals the raster image, blurred by the compressed pulse.
+
+    Raises
+    ------
+    SonarRasterError
+        If the image is not from :func:`render_coherent` or has no visible scatterers.
+    """
+    md = image.metadata
+    if md.get("renderer") != "coherent":
+        raise SonarRasterError("to_raster_units needs an image from render_coherent")
+    area = float(md["facet_area_m2"])
+    if not area > 0:
+        raise SonarRasterError("the coherent image saw no scatterers; nothing to scale")
+    beam = md["horizontal_beam"]
+    beam_h = HorizontalBeam(float(beam["width_rad"]), str(beam["kind"]))
+    sonar = image.sonar
+    r = (np.arange(sonar.n_bins) + 0.5) * sonar.range_bin
+    lam = float(md["wavelength_m"])
+    factor = r**4 * lam**2 / area * float(md["ping_width_m"]) / beam_h.footprint(r)
+    sides = {s: (a * factor).astype(np.float32) for s, a in image.sides.items()}
+    return SonarImage(sides=sides, sonar=sonar, metadata={**md, "units": "m^2 (raster units)"})

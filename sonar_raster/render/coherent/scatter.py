@@ -1,0 +1,216 @@
+"""Mesh surfaces as point scatterers for the coherent model, generated chunk by chunk.
+
+Triangle ``f`` is cut into ``n_f²`` equal sub-triangles (facets) by uniform barycentric
+subdivision, ``n_f = max(1, ceil(max(sqrt(A_f) / s, longest edge / (2 s))))`` for a spacing
+``s``: about one facet per ``s²`` of area (facet area ``a² = A_f / n_f² <= s²``, close to
+``s²`` on triangles much larger than ``s``), with no facet edge longer than ``2 s``. Facets are
+indexed on an ``n × n`` square grid as in :mod:`sonar_raster.render.patches` (cell ``(i, j)`` is
+upright for ``i + j <= n − 1`` with centroid barycentric ``((i + 1/3)/n, (j + 1/3)/n)``, else
+inverted with centroid ``(1 − (i + 1/3)/n, 1 − (j + 1/3)/n)``); the scatterer sits at the
+facet centroid moved by an isotropic Gaussian jitter (rms ``σ`` per axis, truncated at 4σ).
+
+The jitter is a pure function of (seed, face index, cell index) through a counter-based hash,
+so a scatterer is the same whichever chunk, ping block or track segment generates it: results
+do not depend on chunking. Only facets whose centroids fall inside a box (a ping block's reach)
+are generated: each subdivision row is clipped to the box analytically.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...scene import Scene
+from ..patches import Runs, overlaps, project, runs_in_box
+
+#: Subdivision rows handled at once (bounds the per-row arrays to a few tens of MB).
+_ROW_BLOCK = 1 << 18
+#: Jitter truncation, in standard deviations per axis.
+JITTER_CLIP = 4.0
+
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_MIX1 = np.uint64(0xBF58476D1CE4E5B9)
+_MIX2 = np.uint64(0x94D049BB133111EB)
+
+
+@dataclass(frozen=True)
+class ScatterSurface:
+    """Scene triangles in local coordinates with their subdivision into facets.
+
+    Attributes
+    ----------
+    tri : ndarray, shape (m, 3, 3)
+        Corners, local metres.
+    normal : ndarray, shape (m, 3)
+        Unit normals.
+    n_sub : ndarray, shape (m,), int64
+        Subdivisions per edge; a triangle has ``n_sub²`` facets.
+    facet_area : ndarray, shape (m,)
+        a², m².
+    reflectivity : ndarray, shape (m,)
+        R of each face.
+    """
+
+    tri: np.ndarray
+    normal: np.ndarray
+    n_sub: np.ndarray
+    facet_area: np.ndarray
+    reflectivity: np.ndarray
+
+
+def scatter_surface(scene: Scene, local: np.ndarray, spacing: float) -> ScatterSurface:
+    """Subdivide ``scene`` (shifted by ``-local``) for a scatterer spacing in metres."""
+    tri = scene.triangles() - local
+    normal, area = scene.face_normals_areas()
+    edges = np.linalg.norm(tri[:, [1, 2, 0]] - tri, axis=2).max(axis=1)
+    n = np.maximum(np.sqrt(area) / spacing, edges / (2.0 * spacing))
+    n_sub = np.maximum(1, np.ceil(n - 1e-9)).astype(np.int64)
+    return ScatterSurface(
+        tri, normal, n_sub, area / n_sub.astype(np.float64) ** 2, scene.reflectivity
+    )
+
+
+@dataclass(frozen=True)
+class Scatterers:
+    """One chunk of scatterers in a frame (along, starboard, up) relative to its origin.
+
+    Attributes
+    ----------
+    face : ndarray, shape (k,), int64
+        Parent face.
+    nominal : ndarray, shape (k, 3)
+        Facet centroid, metres (visibility and culling use it).
+    position : ndarray, shape (k, 3)
+        Jittered scatterer position, metres (the echo uses it).
+    normal : ndarray, shape (k, 3)
+        Unit normal of the parent face in frame components.
+    facet_area : ndarray, shape (k,)
+        a², m².
+    reflectivity : ndarray, shape (k,)
+        R.
+    """
+
+    face: np.ndarray
+    nominal: np.ndarray
+    position: np.ndarray
+    normal: np.ndarray
+    facet_area: np.ndarray
+    reflectivity: np.ndarray
+
+    def take(self, keep: np.ndarray) -> Scatterers:
+        """The scatterers selected by an index or mask array."""
+        return Scatterers(*(getattr(self, f)[keep] for f in _FIELDS))
+
+
+_FIELDS = ("face", "nominal", "position", "normal", "facet_area", "reflectivity")
+
+
+def generate(
+    surface: ScatterSurface,
+    axes: np.ndarray,
+    origin: np.ndarray,
+    bounds: np.ndarray,
+    chunk: int,
+    jitter: float,
+    seed: int,
+) -> Iterator[Scatterers]:
+    """Yield the scatterers whose facet centroid lies in ``bounds``, about ``chunk`` at a time.
+
+    Parameters
+    ----------
+    surface : ScatterSurface
+        The subdivided scene.
+    axes : ndarray, shape (3, 3)
+        Rows along, starboard, up of the frame (world axes).
+    origin : ndarray, shape (3,)
+        Frame origin, local metres.
+    bounds : ndarray, shape (3, 2)
+        Box in frame coordinates (min, max per axis), metres.
+    chunk : int
+        Scatterers per chunk (whole runs, so a chunk may exceed it by one row).
+    jitter : float
+        Rms jitter per axis, metres (0: scatterers at facet centroids).
+    seed : int
+        Seed of the jitter hash.
+    """
+    proj = project(surface.tri, origin, axes, _rotate)
+    ids = np.flatnonzero(overlaps(proj, bounds))
+    if len(ids) == 0:
+        return
+    normal = _rotate(surface.normal, axes)
+    for runs in runs_in_box(proj, surface.n_sub, ids, bounds, row_block=_ROW_BLOCK, chunk=chunk):
+        yield _expand(surface, normal, ids, runs, axes, jitter, seed)
+
+
+def _rotate(v: np.ndarray, axes: np.ndarray) -> np.ndarray:
+    """Components of vectors ``v`` (k, 3) along the rows of ``axes`` (no BLAS: tiny inner size)."""
+    return np.einsum("kj,cj->kc", v, axes)
+
+
+def _expand(
+    surface: ScatterSurface,
+    normal: np.ndarray,
+    ids: np.ndarray,
+    runs: Runs,
+    axes: np.ndarray,
+    jitter: float,
+    seed: int,
+) -> Scatterers:
+    """Materialise the facets of some runs (``runs.tri`` indexes ``ids``) as scatterers."""
+    run, offset = runs.cells()
+    j = runs.lo[run] + offset
+    nominal = runs.base[run] + runs.slope[run] * j[:, None].astype(np.float64)
+    face = ids[runs.tri[run]]
+    n = surface.n_sub[face]
+    position = nominal
+    if jitter > 0:
+        cell = runs.i[run] * n + j
+        position = nominal + _rotate(jitter * _gaussian3(face, cell, seed), axes)
+    return Scatterers(
+        face=face,
+        nominal=nominal,
+        position=position,
+        normal=normal[face],
+        facet_area=surface.facet_area[face],
+        reflectivity=surface.reflectivity[face],
+    )
+
+
+def _splitmix(z: np.ndarray) -> np.ndarray:
+    """SplitMix64 finaliser on uint64 arrays (wrapping arithmetic)."""
+    z = z + _GOLDEN
+    z = (z ^ (z >> np.uint64(30))) * _MIX1
+    z = (z ^ (z >> np.uint64(27))) * _MIX2
+    return z ^ (z >> np.uint64(31))
+
+
+def _uniforms(face: np.ndarray, cell: np.ndarray, seed: int, count: int) -> np.ndarray:
+    """``count`` uniforms in (0, 1) per (face, cell), shape (count, k): a pure function."""
+    key = np.full(len(face), np.uint64(seed & 0xFFFFFFFFFFFFFFFF), dtype=np.uint64)
+    key = _splitmix(key ^ face.astype(np.uint64))
+    key = _splitmix(key ^ cell.astype(np.uint64))
+    out = np.empty((count, len(face)))
+    for c in range(count):
+        step = np.uint64(((c + 1) * 0x9E3779B97F4A7C15) & 0xFFFFFFFFFFFFFFFF)
+        bits = _splitmix(key + step) >> np.uint64(11)
+        out[c] = (bits.astype(np.float64) + 0.5) * (1.0 / (1 << 53))
+    return out
+
+
+def _gaussian3(face: np.ndarray, cell: np.ndarray, seed: int) -> np.ndarray:
+    """Standard normal 3-vectors (world axes) per (face, cell), truncated at ``JITTER_CLIP``."""
+    u = _uniforms(face, cell, seed, 4)
+    r1 = np.sqrt(-2.0 * np.log(u[0]))
+    r2 = np.sqrt(-2.0 * np.log(u[2]))
+    g = np.stack(
+        [
+            r1 * np.cos(2 * math.pi * u[1]),
+            r1 * np.sin(2 * math.pi * u[1]),
+            r2 * np.cos(2 * math.pi * u[3]),
+        ],
+        axis=1,
+    )
+    return np.clip(g, -JITTER_CLIP, JITTER_CLIP)

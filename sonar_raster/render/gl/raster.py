@@ -1,0 +1,762 @@
+"""The GL renderer: scene + sonar + trajectory → raw side-scan intensity, on moderngl.
+
+Pass 1 (``gl/ping_samples.glsl``) draws the scene once per straight track segment and
+side into a (ping row × look-angle column) float framebuffer: each texel is one ray of the fan,
+holding the slant range of its nearest hit (exact ray-plane intersection), the range spread of
+its ray bundle on that plane (across the column's angle and along the row's width) and the
+weight ``Φ R r dα dy`` (Lambert). The depth test keeps the nearest hit, so objects shadow what
+lies behind them. Pass 2 (``gl/range_accumulate.glsl``) shares each weight among the range
+bins its spread overlaps, with exact fixed-point integer atomics. This module and
+:mod:`sonar_raster.render.gl.context` are the only ones that know OpenGL.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Iterator
+from dataclasses import asdict, dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from ...errors import SonarRasterError
+from ...image import SonarImage
+from ...scene import Scene
+from ...sonar import Sonar
+from ...trajectory import Segment, Trajectory
+from .context import create_context, release_context
+from .programs import specialise
+from .subdivide import subdivide, subdivision_counts
+from .tiles import TileIndex
+from .warp import Warp
+
+log = logging.getLogger(__name__)
+
+MAX_TEXTURE = 16384
+MAX_TEXELS = 1 << 26  # largest framebuffer per draw (64 M samples, 768 MiB of targets)
+_FIXED_POINT_TOP = float(1 << 30)
+_GL_DEPTH_CLAMP = 0x864F
+_SPLITS = ("nearest", "linear", "footprint")
+
+
+@dataclass(frozen=True)
+class RasterSettings:
+    """Sampling settings of the GL renderer.
+
+    Attributes
+    ----------
+    oversample : float
+        Look-angle samples per range bin over flat ground at the nominal altitude.
+    along_samples : int
+        Rays per ping along track (rows per ping); their weights share the ping's width.
+    split : {"footprint", "nearest", "linear"}
+        How a sample's weight goes into range bins: spread over the range interval its ray
+        bundle covers on the surface (exact for planar pieces), all into the bin holding its
+        centre range, or split between the two nearest bin centres.
+    max_edge : float or None
+        Triangles with a longer edge (metres) are subdivided so their outlines follow the
+        curved projection; None uses 20 range bins.
+    near_nadir : float
+        Floor of the warp's slope near nadir, as a fraction of the altitude (see ``_warp``).
+    cull : bool
+        Draw only the triangles near each draw's swath (default); False draws the whole scene
+        every time (the baseline the scale benchmark compares against).
+    """
+
+    oversample: float = 2.0
+    along_samples: int = 2
+    split: str = "footprint"
+    max_edge: float | None = None
+    near_nadir: float = 1.0
+    cull: bool = True
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.oversample) and 0 < self.oversample <= 64):
+            raise SonarRasterError("oversample must be in (0, 64] samples per range bin")
+        if not (isinstance(self.along_samples, int) and 1 <= self.along_samples <= 64):
+            raise SonarRasterError("along_samples must be an integer from 1 to 64")
+        if self.split not in _SPLITS:
+            raise SonarRasterError(f"split must be one of {', '.join(_SPLITS)}")
+        if self.max_edge is not None and not self.max_edge > 0:
+            raise SonarRasterError("max_edge must be > 0 metres")
+
+
+@dataclass(frozen=True)
+class _Draw:
+    """Everything one (segment, side) draw needs, computed on the CPU in float64."""
+
+    segment: Segment
+    side: str
+    axis_side: np.ndarray
+    motion: np.ndarray  # direction of travel in (fore, side, up) fan coordinates
+    frame_sign: float
+    warp: Warp
+    beam_axis: float
+    rows: int  # pings rendered (1 for a stationary segment)
+    spacing: float  # along-track metres per ping row block
+
+
+class RasterRenderer:
+    """Owns one headless GL context and every GL object made on it.
+
+    Use as a context manager, or call :meth:`release` (safe to call twice).
+
+    Parameters
+    ----------
+    backend : {"egl", "osmesa"} or None
+        GL backend; None reads ``SONAR_RASTER_GL`` then tries EGL and OSMesa.
+    settings : RasterSettings
+        Sampling settings.
+    """
+
+    def __init__(self, backend: str | None = None, settings: RasterSettings | None = None):
+        self.settings = settings or RasterSettings()
+        self.ctx, self.backend = create_context(backend)
+        self._programs: dict[str, Any] = {}
+        self._scene_key: tuple | None = None
+        self._scene: Scene | None = None  # the uploaded scene (held, so its id cannot be reused)
+        self._geometry: dict[str, Any] = {}
+        self._targets: dict[str, Any] = {}
+
+    # -- lifetime ---------------------------------------------------------------------------
+    def release(self) -> None:
+        """Release every GL object and the context."""
+        if self.ctx is None:
+            return
+        with self.ctx:
+            self._release_geometry()
+            self._release_targets()
+            for prog in self._programs.values():
+                prog.release()
+            self._programs.clear()
+        release_context(self.ctx)
+        self.ctx = None
+
+    def __enter__(self) -> RasterRenderer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.release()
+
+    @property
+    def gl_info(self) -> dict[str, str]:
+        """Backend, renderer and version strings of the context."""
+        return {
+            "gl_backend": self.backend,
+            "gl_renderer": self.ctx.info["GL_RENDERER"],
+            "gl_version": self.ctx.info["GL_VERSION"],
+        }
+
+    # -- programs ---------------------------------------------------------------------------
+    def _program(self, kind: str, labels: bool = False) -> Any:
+        key = f"{kind}:{self.settings.split}:{int(labels)}"
+        if key not in self._programs:
+            if kind == "samples":
+                d = {"SCATTERING": 1, "LABELS": int(labels)}
+                self._programs[key] = self.ctx.program(
+                    vertex_shader=specialise("ping_samples.glsl", "VERTEX_SHADER", d),
+                    geometry_shader=specialise("ping_samples.glsl", "GEOMETRY_SHADER", d),
+                    fragment_shader=specialise("ping_samples.glsl", "FRAGMENT_SHADER", d),
+                )
+            else:
+                d = {"SPLIT": _SPLITS.index(self.settings.split), "LABELS": int(labels)}
+                self._programs[key] = self.ctx.compute_shader(
+                    specialise("range_accumulate.glsl", "COMPUTE_SHADER", d)
+                )
+        return self._programs[key]
+
+    # -- geometry ---------------------------------------------------------------------------
+    def _release_geometry(self) -> None:
+        for obj in self._geometry.values():
+            if hasattr(obj, "release"):
+                obj.release()
+        self._geometry.clear()
+        self._scene_key = None
+        self._scene = None
+
+    def _upload(self, scene: Scene, origin: np.ndarray, max_edge: float) -> None:
+        """Shift the scene to ``origin`` (float64), subdivide long triangles, upload vertices.
+
+        Memory is kept near one float32 copy of the vertices: the index and reflectivity
+        buffers of the whole scene are made only if a draw needs the whole scene, and labels
+        only if asked for.
+        """
+        key = (tuple(origin), max_edge)
+        if self._scene is scene and key == self._scene_key:
+            return
+        self._release_geometry()
+        vertices = _local_float32(scene.vertices, origin)
+        faces = scene.faces
+        source = None  # scene face of each uploaded face, when subdivision reordered them
+        counts = subdivision_counts(vertices, faces, max_edge)
+        big = counts > 1
+        if big.any():
+            corners = vertices[faces[big]].astype(np.float64)
+            pieces, parent = subdivide(corners, counts[big])
+            extra = pieces.reshape(-1, 3).astype(np.float32)
+            new_faces = len(vertices) + np.arange(len(extra)).reshape(-1, 3)
+            vertices = np.concatenate([vertices, extra])
+            faces = np.concatenate([faces[~big], new_faces.astype(faces.dtype)])
+            source = np.concatenate([np.flatnonzero(~big), np.flatnonzero(big)[parent]])
+            log.info("subdivided %d large triangles into %d", int(big.sum()), len(pieces))
+        refl = scene.reflectivity if source is None else scene.reflectivity[source]
+        self._geometry = {
+            "vertices": vertices,
+            "faces_cpu": faces,
+            "refl_cpu": refl,
+            "source": source,
+            "max_edge": max_edge,
+            "vbo": self.ctx.buffer(vertices),
+            "n_faces": len(faces),
+            "r_max": float(refl.max(initial=0.0)),
+        }
+        self._scene_key = key
+        self._scene = scene
+
+    def _whole_scene(self) -> dict[str, Any]:
+        """The uploaded geometry with its whole-scene index and reflectivity buffers."""
+        geo = self._geometry
+        if "ibo" not in geo:
+            geo["ibo"] = self.ctx.buffer(geo["faces_cpu"].astype("u4"))
+            geo["faces"] = self.ctx.buffer(geo["refl_cpu"].astype("f4"))
+        return geo
+
+    def _face_labels(self, ids: np.ndarray | None) -> np.ndarray:
+        """Labels (object id + 1; 0 means "no return") of uploaded faces ``ids`` (None: all)."""
+        source = self._geometry["source"]
+        if source is not None:
+            ids = source if ids is None else source[ids]
+        object_id = self._scene.object_id if self._scene is not None else np.zeros(0, np.int32)
+        return (object_id if ids is None else object_id[ids]).astype(np.uint32) + 1
+
+    def _vao(self, geometry: dict[str, Any], labels: bool) -> Any:
+        """The vertex array of ``geometry`` for the pass-1 program (made on first use)."""
+        key = f"vao:{int(labels)}"
+        if key not in geometry:
+            geometry[key] = self.ctx.vertex_array(
+                self._program("samples", labels),
+                [(self._geometry["vbo"], "3f", "in_pos")],
+                index_buffer=geometry["ibo"],
+                index_element_size=4,
+            )
+            if geometry.get("empty"):
+                geometry[key].vertices = 0
+        return geometry[key]
+
+    def _labels_buffer(self, geometry: dict[str, Any], ids: np.ndarray | None) -> Any:
+        """Per-face labels (object id + 1) as a storage buffer, made on first use."""
+        if "labels" not in geometry:
+            data = self._face_labels(ids)
+            geometry["labels"] = self.ctx.buffer(data if len(data) else b"\0" * 4)
+        return geometry["labels"]
+
+    def _release_targets(self) -> None:
+        for obj in self._targets.values():
+            obj.release()
+        self._targets.clear()
+
+    def _framebuffer(self, width: int, height: int, labels: bool) -> dict[str, Any]:
+        """Sample targets at least this size, reused across draws (each draws in a viewport).
+
+        With ``labels`` a second, uint32 target holds each texel's label; it is kept once made
+        (a draw without labels leaves it untouched and nothing reads it).
+        """
+        if self._targets:
+            old_w, old_h = self._targets["color"].size
+            has_labels = "labels" in self._targets
+            if old_w >= width and old_h >= height and (has_labels or not labels):
+                return self._targets
+            width, height = max(width, old_w), max(height, old_h)
+            labels = labels or has_labels
+        color = self.ctx.texture((width, height), 4, dtype="f4")
+        attachments = [color]
+        if labels:
+            attachments.append(self.ctx.texture((width, height), 1, dtype="u4"))
+        depth = self.ctx.depth_texture((width, height))
+        depth.compare_func = ""  # pass 2 reads the depth itself: < 1 where a fragment landed
+        fbo = self.ctx.framebuffer(attachments, depth)
+        fbo.use()  # bind the new one first: releasing a bound framebuffer upsets moderngl
+        self._release_targets()
+        self._targets = {"fbo": fbo, "color": color, "depth": depth}
+        if labels:
+            self._targets["labels"] = attachments[1]
+        return self._targets
+
+    # -- planning ---------------------------------------------------------------------------
+    def _plan(self, scene: Scene, sonar: Sonar, trajectory: Trajectory) -> list[_Draw]:
+        tol = sonar.range_bin / 4.0
+        along = self.settings.along_samples
+        max_rows = (
+            max(1, min(MAX_TEXTURE, MAX_TEXELS // self._columns_total_estimate(sonar))) // along
+        )
+        z_top = float(scene.bounds[1, 2])
+        draws = []
+        # Fans of one draw share an orientation: their spread moves far-range points along
+        # track by max_range x angle; keep that under half a ping (0.05 to 0.5 degrees).
+        angle = min(max(0.5 * trajectory.typical_spacing / sonar.max_range, 8.7e-4), 8.7e-3)
+        for seg in trajectory.segments(tol, max_count=max(1, max_rows), angle_tolerance=angle):
+            roll = float(np.mean(trajectory.roll[seg.first : seg.first + seg.count]))
+            altitude = float(seg.origin[2] - scene.ground_z)
+            # Nothing above z_top within the image's reach (max range plus the largest spread
+            # of a sample, 8 bins) lies at a smaller depression than this.
+            reach = sonar.max_range + 8.0 * sonar.range_bin
+            alpha_top = math.asin(min(1.0, max(-1.0, (float(seg.origin[2]) - z_top) / reach)))
+            warp = Warp.make(altitude, sonar.max_range, alpha_top, self.settings.near_nadir)
+            stationary = seg.spacing == 0.0
+            for side in sonar.sides:
+                sign = 1.0 if side == "starboard" else -1.0
+                axis_side = sign * seg.starboard
+                det = float(np.linalg.det(np.stack([seg.fore, axis_side, seg.up])))
+                motion = np.array([seg.along @ seg.fore, seg.along @ axis_side, seg.along @ seg.up])
+                draws.append(
+                    _Draw(
+                        segment=seg,
+                        side=side,
+                        axis_side=axis_side,
+                        motion=motion,
+                        frame_sign=det,
+                        warp=warp,
+                        beam_axis=sonar.tilt + sign * roll,
+                        rows=1 if stationary else seg.count,
+                        spacing=seg.width if stationary else seg.spacing,
+                    )
+                )
+        return draws
+
+    def _columns_total_estimate(self, sonar: Sonar) -> int:
+        return min(MAX_TEXTURE, int(math.ceil(self.settings.oversample * sonar.n_bins * 1.2)) + 1)
+
+    def _columns_total(self, warp: Warp, sonar: Sonar) -> int:
+        rho_lo, rho_hi = warp.rho_range
+        return max(
+            8, int(math.ceil(self.settings.oversample * (rho_hi - rho_lo) / sonar.range_bin))
+        )
+
+    # -- rendering --------------------------------------------------------------------------
+    def render(
+        self,
+        scene: Scene,
+        sonar: Sonar,
+        trajectory: Trajectory,
+        progress: bool = False,
+        labels: bool = False,
+    ) -> SonarImage:
+        """Render one image per side.
+
+        Parameters
+        ----------
+        scene : Scene
+        sonar : Sonar
+        trajectory : Trajectory
+        progress : bool
+            Show a progress bar over the draws.
+        labels : bool
+            Also label each cell with the object its largest share of weight came from
+            (``SonarImage.labels``); off, no label work is done at all.
+
+        Returns
+        -------
+        SonarImage
+            float32 (pings × bins) per side; see :class:`SonarImage` for units.
+        """
+        chunks = self.render_chunks(
+            scene, sonar, trajectory, trajectory.n_pings, progress=progress, labels=labels
+        )
+        return next(iter(chunks))
+
+    def render_chunks(
+        self,
+        scene: Scene,
+        sonar: Sonar,
+        trajectory: Trajectory,
+        chunk_pings: int = 1024,
+        *,
+        progress: bool = False,
+        labels: bool = False,
+    ) -> Iterator[SonarImage]:
+        """Render the track in blocks of pings, yielding each block's image as it finishes.
+
+        Memory stays bounded by the block, not the track: write each block out (see
+        :class:`.survey.ExrStreamWriter`) and drop it. The track is split into straight
+        segments once for the whole track, then cut at block edges, so the blocks put together
+        equal :meth:`render` of the whole track to float32 rounding. Each draw draws only the
+        triangles near its block's swath (a tile index over the scene), and a draw with no
+        triangle near it is skipped. Rendering another scene with this renderer between two
+        blocks is allowed: the next block uploads its scene again.
+
+        Parameters
+        ----------
+        scene, sonar, trajectory, progress, labels
+            As for :meth:`render`.
+        chunk_pings : int
+            Pings per block, >= 1.
+
+        Yields
+        ------
+        SonarImage
+            Rows ``metadata["first_ping"]`` onwards of the track; ``metadata["counters"]``
+            counts what the block drew and skipped.
+        """
+        if self.ctx is None:
+            raise SonarRasterError("this renderer was released; make a new one")
+        if not (isinstance(chunk_pings, (int, np.integer)) and chunk_pings >= 1):
+            raise SonarRasterError(f"chunk_pings must be a positive integer, got {chunk_pings!r}")
+        with self.ctx:
+            origin = trajectory.positions[0].copy()
+            max_edge = self.settings.max_edge or 20.0 * sonar.range_bin
+            self._upload(scene, origin, max_edge)
+            plan = self._plan(scene, sonar, trajectory)
+            if self.settings.cull:  # built now, before the sample targets take their memory
+                self._tile_index(self._reach(sonar))
+        for first in range(0, trajectory.n_pings, int(chunk_pings)):
+            last = min(trajectory.n_pings, first + int(chunk_pings))
+            draws = [d for d in (_clip(d, first, last) for d in plan) if d is not None]
+            with self.ctx:
+                # A render of another scene between two blocks replaced the uploaded one:
+                # upload this generator's scene again (a no-op when it is still there).
+                self._upload(scene, origin, max_edge)
+                image = self._render_block(
+                    scene, sonar, draws, origin, (first, last), progress, labels
+                )
+            yield image
+
+    def _render_block(
+        self,
+        scene: Scene,
+        sonar: Sonar,
+        draws: list[_Draw],
+        origin: np.ndarray,
+        pings: tuple[int, int],
+        progress: bool,
+        labels: bool,
+    ) -> SonarImage:
+        """Render pings ``pings[0] .. pings[1] - 1`` from their draws."""
+        tables = [self._column_tables(d, sonar) for d in draws]
+        scale = self._fixed_point_scale(draws, tables, sonar.max_range, sonar.range_bin)
+        first_ping = pings[0]
+        n_pings, n_bins = pings[1] - pings[0], sonar.n_bins
+        counters = {"draws": 0, "draws_skipped_empty": 0, "triangles_drawn": 0}
+        self._framebuffer(
+            max(t[1] for tiles in tables for t in tiles),
+            max(d.rows for d in draws) * self.settings.along_samples,
+            labels,
+        )
+        cells = {side: self.ctx.buffer(reserve=n_pings * n_bins * 8) for side in sonar.sides}
+        if labels:
+            for side in sonar.sides:
+                cells[f"{side}:labels"] = self.ctx.buffer(reserve=n_pings * n_bins * 4)
+        for buf in cells.values():
+            buf.clear()
+        try:
+            items = list(zip(draws, tables, strict=True))
+            if progress:
+                from tqdm import tqdm
+
+                items = tqdm(items, desc="rendering", unit="draw", disable=None, leave=False)
+            for draw, table in items:
+                geometry = self._geometry_for(draw, sonar, origin)
+                try:
+                    if geometry["n_faces"] == 0:
+                        counters["draws_skipped_empty"] += 1
+                        continue
+                    self._draw(
+                        draw, table, origin, sonar, scale, cells, geometry, labels, first_ping
+                    )
+                    counters["draws"] += 1
+                    counters["triangles_drawn"] += int(geometry["n_faces"])
+                finally:
+                    self._release_subset(geometry)
+            shape = (first_ping, n_pings, n_bins)
+            sides = {s: self._read(cells[s], draws, scale, shape, s) for s in sonar.sides}
+            label_images = None
+            if labels:
+                label_images = {
+                    s: self._read_labels(cells[f"{s}:labels"], draws, shape, s) for s in sonar.sides
+                }
+        finally:
+            for buf in cells.values():
+                buf.release()
+        meta = {
+            "renderer": "gl",
+            "settings": asdict(self.settings),
+            **self.gl_info,
+            "draws": len(draws),
+            "triangles": int(self._geometry["n_faces"]),
+            "first_ping": first_ping,
+            "counters": counters,
+        }
+        if labels:
+            meta["label_names"] = ["(no return)", *scene.names]
+        return SonarImage(sides=sides, sonar=sonar, metadata=meta, labels=label_images)
+
+    def _column_tables(self, draw: _Draw, sonar: Sonar) -> list[tuple[int, int, int, np.ndarray]]:
+        """Per column tile: (first column, count, total, (alpha, Φ dα) float32 array)."""
+        total = self._columns_total(draw.warp, sonar)
+        out = []
+        for first in range(0, total, MAX_TEXTURE):
+            count = min(MAX_TEXTURE, total - first)
+            alpha, dalpha = draw.warp.columns(first, count, total)
+            phi = sonar.beam(alpha - draw.beam_axis)
+            table = np.stack([alpha, phi * dalpha, 0.5 * dalpha, np.zeros_like(alpha)], axis=1)
+            out.append((first, count, total, table.astype("f4")))
+        return out
+
+    def _fixed_point_scale(
+        self, draws: list[_Draw], tables: list, max_range: float, range_bin: float
+    ) -> float:
+        """Fixed-point units per weight unit: the largest possible sample weight maps to 2^30.
+
+        Only samples whose spread reaches the image are deposited, so their range is below the
+        maximum range plus half the largest spread (``MAX_SPREAD`` = 16 bins in the shader).
+        """
+        reach = max_range + 16.0 * range_bin
+        bound = 0.0
+        for draw, tiles in zip(draws, tables, strict=True):
+            phid = max(float(t[3][:, 1].max()) for t in tiles)
+            row_width = draw.segment.width / self.settings.along_samples
+            bound = max(bound, self._geometry["r_max"] * phid * reach * row_width)
+        return _FIXED_POINT_TOP / bound if bound > 0 else 1.0
+
+    def _draw(
+        self,
+        draw: _Draw,
+        tiles: list,
+        origin: np.ndarray,
+        sonar: Sonar,
+        scale: float,
+        cells: dict[str, Any],
+        geometry: dict[str, Any],
+        labels: bool,
+        ping_base: int,
+    ) -> None:
+        ctx = self.ctx
+        seg = draw.segment
+        along = self.settings.along_samples
+        height = draw.rows * along
+        prog = self._program("samples", labels)
+        comp = self._program("accumulate", labels)
+        vao = self._vao(geometry, labels)
+        far = 1.5 * sonar.max_range
+        rho_lo_all, rho_hi_all = draw.warp.rho_range
+        uniforms = {
+            "seg_origin": tuple((seg.origin - origin).astype("f4")),
+            "axis_along": tuple(seg.fore),
+            "motion": tuple(draw.motion),
+            "axis_side": tuple(draw.axis_side),
+            "axis_up": tuple(seg.up),
+            "warp_h": draw.warp.h,
+            "warp_c": draw.warp.c,
+            "alpha0": draw.warp.alpha0,
+            "rho0": draw.warp.rho0,
+            "slope0": draw.warp.slope0,
+            "row_scale": 2.0 / (draw.spacing * draw.rows),
+            "row_offset": 2.0 * 0.5 / draw.rows - 1.0,
+            "far_range": far,
+            # A triangle can only span more than pi of look angle by wrapping over the top.
+            "alpha_span_max": math.pi,
+            "spacing": draw.spacing,
+            "rows_per_ping": float(along),
+            "row_width": seg.width / along,
+            # -1 when the (along, side, up) frame is left-handed: flips the computed normals.
+            "frame_sign": draw.frame_sign,
+        }
+        for name, value in uniforms.items():
+            if name in prog:
+                prog[name].value = value
+        geometry["faces"].bind_to_storage_buffer(0)
+        if labels:
+            self._labels_buffer(geometry, geometry.get("ids")).bind_to_storage_buffer(2)
+            cells[f"{draw.side}:labels"].bind_to_storage_buffer(3)
+            self._targets["labels"].use(location=3)
+            comp["sample_labels"].value = 3
+        ctx.enable_direct(_GL_DEPTH_CLAMP)
+        targets = self._targets
+        fbo = targets["fbo"]
+        for first, count, total, table in tiles:
+            d_rho = (rho_hi_all - rho_lo_all) / total
+            prog["rho_lo"].value = rho_lo_all + first * d_rho
+            prog["rho_hi"].value = rho_lo_all + (first + count) * d_rho
+            col_tex = ctx.texture((count, 1), 4, table.tobytes(), dtype="f4")
+            try:
+                fbo.use()
+                fbo.viewport = (0, 0, count, height)
+                # Clear the depth only: pass 2 skips texels whose depth stayed at 1, so stale
+                # colour from an earlier draw is never read (and the colour clear is saved).
+                n_targets = len(fbo.color_attachments)
+                fbo.color_mask = _masks(False, n_targets)
+                fbo.use()  # moderngl applies the colour mask when the framebuffer is bound
+                fbo.clear(depth=1.0, viewport=(0, 0, count, height))
+                fbo.color_mask = _masks(True, n_targets)
+                fbo.use()
+                ctx.enable(ctx.DEPTH_TEST)
+                col_tex.use(location=1)
+                prog["columns"].value = 1
+                vao.render(mode=ctx.TRIANGLES)
+                targets["color"].use(location=0)
+                targets["depth"].use(location=2)
+                cells[draw.side].bind_to_storage_buffer(1)
+                comp["samples"].value = 0
+                comp["depth"].value = 2
+                comp["size"].value = (count, height)
+                comp["rows_per_ping"].value = along
+                comp["ping_offset"].value = seg.first - ping_base
+                comp["n_bins"].value = sonar.n_bins
+                comp["inv_bin"].value = 1.0 / sonar.range_bin
+                comp["scale"].value = scale
+                comp.run(group_x=(count + 63) // 64, group_y=(height + 3) // 4)
+                ctx.memory_barrier()
+            finally:
+                col_tex.release()
+
+    # -- culling ----------------------------------------------------------------------------
+    def _geometry_for(self, draw: _Draw, sonar: Sonar, origin: np.ndarray) -> dict[str, Any]:
+        """The uploaded scene, or only its triangles that can reach this draw's image.
+
+        Candidates come from a tile index over the plane (the bounding box of the draw's swath
+        rectangle); a candidate is kept when one of its corners lies within the subdivision
+        edge length of the segment's along-track window, of the maximum range from the track,
+        and of the draw's side. When half the scene or more is kept, the whole scene is drawn
+        and nothing is uploaded.
+        """
+        geo = self._geometry
+        if not self.settings.cull:
+            return self._whole_scene()
+        seg = draw.segment
+        # Corner tests widened by the longest edge, so a triangle whose corners are all outside
+        # but which crosses the window is still kept.
+        margin = geo["max_edge"]
+        t_lo = -0.5 * seg.width - margin
+        t_hi = (seg.count - 1) * seg.spacing + 0.5 * seg.width + margin
+        reach = self._reach(sonar)
+        start = seg.origin - origin
+        corners = np.array(
+            [start + a * seg.along + b * draw.axis_side for a in (t_lo, t_hi) for b in (0, reach)]
+        )
+        index = self._tile_index(reach)
+        candidates = index.query(
+            corners[:, 0].min(),
+            corners[:, 0].max(),
+            corners[:, 1].min(),
+            corners[:, 1].max(),
+            margin,
+        )
+        if len(candidates) > 0.5 * geo["n_faces"]:
+            return self._whole_scene()  # most of the scene is near: the exact test cannot pay
+        f = geo["faces_cpu"][candidates]
+        rel = geo["vertices"][f.reshape(-1)] - start
+        shear = seg.shear  # (travel, starboard, up) of each corner relative to its fan
+        t = _dot(rel, shear[0])
+        side = _dot(rel, shear[1] * float(draw.axis_side @ seg.starboard))
+        near = (t >= t_lo) & (t <= t_hi) & (side >= -margin)
+        near &= np.hypot(side, _dot(rel, shear[2])) <= reach
+        ids = candidates[near.reshape(-1, 3).any(axis=1)]
+        if len(ids) > 0.5 * geo["n_faces"]:
+            return self._whole_scene()
+        faces = geo["faces_cpu"][ids].astype("u4")
+        refl = geo["refl_cpu"][ids].astype("f4")
+        ibo = self.ctx.buffer(faces if len(ids) else b"\0" * 12)
+        refl = self.ctx.buffer(refl if len(ids) else b"\0" * 4)
+        return {
+            "ibo": ibo,
+            "faces": refl,
+            "ids": ids,
+            "n_faces": len(ids),
+            "empty": len(ids) == 0,
+            "subset": True,
+        }
+
+    def _reach(self, sonar: Sonar) -> float:
+        """Distance from the track within which a triangle can reach the image, metres."""
+        return sonar.max_range + 8.0 * sonar.range_bin + self._geometry["max_edge"]
+
+    def _tile_index(self, reach: float) -> TileIndex:
+        """The tile index of the uploaded scene, tiles about a quarter of the reach (cached)."""
+        geo = self._geometry
+        size = max(0.25 * reach, 2.0 * geo["max_edge"])
+        index = geo.get("tile_index")
+        if index is None or not (0.5 * size <= index.size <= 2.0 * size):
+            index = TileIndex(geo["vertices"], geo["faces_cpu"], size)
+            geo["tile_index"] = index
+        return index
+
+    @staticmethod
+    def _release_subset(geometry: dict[str, Any]) -> None:
+        if geometry.get("subset"):
+            for obj in geometry.values():
+                if hasattr(obj, "release"):
+                    obj.release()
+
+    def _read(
+        self, cells: Any, draws: list[_Draw], scale: float, shape: tuple[int, int, int], side: str
+    ) -> np.ndarray:
+        # Each cell is a (low, high) pair of uint32: read as one little-endian uint64.
+        total = np.frombuffer(cells.read(), dtype="<u8").reshape(shape[1:])
+        image = (total * (1.0 / scale)).astype(np.float32)
+        return _fill_stationary(image, draws, side, shape[0])
+
+    def _read_labels(
+        self, cells: Any, draws: list[_Draw], shape: tuple[int, int, int], side: str
+    ) -> np.ndarray:
+        # The low 16 bits of each cell's key are the label (see range_accumulate.glsl).
+        keys = np.frombuffer(cells.read(), dtype="<u4").reshape(shape[1:])
+        return _fill_stationary((keys & 0xFFFF).astype(np.uint16), draws, side, shape[0])
+
+
+def _fill_stationary(image: np.ndarray, draws: list[_Draw], side: str, base: int) -> np.ndarray:
+    """Copy the one rendered row of each stationary segment to all its pings (in place)."""
+    for draw in draws:
+        seg = draw.segment
+        if draw.side == side and draw.rows == 1 and seg.count > 1:
+            first = seg.first - base
+            image[first + 1 : first + seg.count] = image[first]
+    return image
+
+
+def _clip(draw: _Draw, first: int, last: int) -> _Draw | None:
+    """The part of a draw that renders pings ``first .. last - 1``, or None if it has none."""
+    seg = draw.segment
+    lo, hi = max(first, seg.first), min(last, seg.first + seg.count)
+    if lo >= hi:
+        return None
+    if lo == seg.first and hi == seg.first + seg.count:
+        return draw
+    shift = (lo - seg.first) * seg.spacing
+    piece = replace(seg, first=lo, count=hi - lo, origin=seg.origin + shift * seg.along)
+    rows = 1 if draw.rows == 1 else hi - lo
+    return replace(draw, segment=piece, rows=rows)
+
+
+def _local_float32(vertices: np.ndarray, origin: np.ndarray) -> np.ndarray:
+    """``vertices - origin`` in float64, stored as float32, a block at a time."""
+    out = np.empty(vertices.shape, dtype=np.float32)
+    block = 1 << 20
+    for a in range(0, len(vertices), block):
+        out[a : a + block] = vertices[a : a + block] - origin
+    return out
+
+
+def _masks(write: bool, n_targets: int) -> Any:
+    """A colour mask for every target (moderngl wants a plain tuple for a single target)."""
+    one = (write,) * 4
+    return one if n_targets == 1 else [one] * n_targets
+
+
+def _dot(points: np.ndarray, axis: np.ndarray) -> np.ndarray:
+    """Row-wise dot product of (n, 3) points with one axis (elementwise: BLAS is slower here)."""
+    return points[:, 0] * axis[0] + points[:, 1] * axis[1] + points[:, 2] * axis[2]
+
+
+def render_raster(
+    scene: Scene,
+    sonar: Sonar,
+    trajectory: Trajectory,
+    *,
+    backend: str | None = None,
+    settings: RasterSettings | None = None,
+    progress: bool = False,
+    labels: bool = False,
+) -> SonarImage:
+    """Render with a temporary :class:`RasterRenderer` (see its ``render``)."""
+    with RasterRenderer(backend, settings) as renderer:
+        return renderer.render(scene, sonar, trajectory, progress=progress, labels=labels)

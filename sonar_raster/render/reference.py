@@ -1,0 +1,513 @@
+"""Reference renderer: the sonar integral summed over small surface patches.
+
+The slow, independent oracle for the raster renderer, and a CPU-only fallback. Every triangle
+is cut into ``n²`` equal sub-triangles by uniform barycentric subdivision
+(``n = ceil(longest edge / patch_size)``); each sub-triangle is a patch at its centroid with
+its exact area. Per straight track segment (see :meth:`Trajectory.segments`) a patch at
+along-track coordinate ``t`` belongs to ping ``k = floor(t / spacing + 1/2)`` and is seen from
+the point of the track level with it, ``q = origin + t * along`` (an infinitely thin fan beam
+that moves continuously). A patch facing ``q``, inside the range window and not occluded
+(one ray cast from ``q``) adds ``Φ(α − axis) · R · cos θ · area`` to its ping's range bin.
+
+Work is bounded in memory: patches are generated row by row of the subdivision grid, rows
+outside the segment's slab or beyond the maximum range are skipped analytically, and the rest
+is processed in fixed-size vectorised chunks (see :mod:`sonar_raster.render.patches`).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import SonarRasterError
+from ..image import SonarImage
+from ..scene import Scene
+from ..sonar import Sonar
+from ..trajectory import Segment, Trajectory
+from .patches import Runs, overlaps, project, runs_in_box
+
+log = logging.getLogger(__name__)
+
+#: Relative slant-range tolerance of the visibility test (first hit at >= r (1 - tol) is visible).
+VISIBILITY_REL_TOL = 1e-4
+#: Absolute slant-range tolerance of the visibility test, metres.
+VISIBILITY_ABS_TOL = 1e-5
+#: Patches per vectorised chunk (bounds memory to a few hundred MB).
+_PATCH_CHUNK = 1 << 20
+#: Subdivision-grid rows per block of triangles.
+_ROW_CHUNK = 1 << 19
+
+
+@dataclass(frozen=True)
+class _Frame:
+    """One track segment in the scene's local coordinates.
+
+    Attributes
+    ----------
+    origin, along : ndarray, shape (3,)
+        First ping position (local metres) and the direction of travel.
+    fore, starboard, up : ndarray, shape (3,)
+        The fan's orthonormal axes (see :class:`~sonar_raster.trajectory.Segment`).
+    spacing, width : float
+        Ping spacing and per-ping along-track width, metres (spacing 0: stationary).
+    first, count : int
+        Trajectory index of the first ping and number of pings.
+    roll : ndarray, shape (count,)
+        Roll of each ping, radians, positive starboard down.
+    """
+
+    origin: np.ndarray
+    along: np.ndarray
+    starboard: np.ndarray
+    up: np.ndarray
+    spacing: float
+    width: float
+    first: int
+    count: int
+    roll: np.ndarray
+    patch_size: float
+    fore: np.ndarray
+    shear: np.ndarray
+
+    @property
+    def t_bounds(self) -> tuple[float, float]:
+        """Along-track interval [lo, hi) of surface the segment's pings see, metres."""
+        if self.spacing > 0:
+            return -0.5 * self.spacing, (self.count - 0.5) * self.spacing
+        return -0.5 * self.width, 0.5 * self.width
+
+    @property
+    def axes(self) -> np.ndarray:
+        """Map to (travel, starboard, up) fan coordinates, shape (3, 3) (``Segment.shear``).
+
+        Orthonormal, rows along, starboard, up, unless the vehicle crabs or pitches.
+        """
+        return self.shear
+
+    @property
+    def fan_axes(self) -> np.ndarray:
+        """Rows fore, starboard, up: the fan's orthonormal frame, shape (3, 3)."""
+        return np.stack([self.fore, self.starboard, self.up])
+
+
+@dataclass(frozen=True)
+class _Surface:
+    """Scene triangles in local coordinates, with what the patches need.
+
+    Attributes
+    ----------
+    tri : ndarray, shape (m, 3, 3)
+        Corners, local metres.
+    normal : ndarray, shape (m, 3)
+        Unit normals ``cross(v1 - v0, v2 - v0)`` normalised.
+    n_sub : ndarray, shape (m,), int64
+        Subdivisions per edge; a triangle gives ``n_sub²`` patches.
+    patch_weight : ndarray, shape (m,)
+        Reflectivity times patch area, m².
+    """
+
+    tri: np.ndarray
+    normal: np.ndarray
+    n_sub: np.ndarray
+    patch_weight: np.ndarray
+
+
+@dataclass(frozen=True)
+class _Patches:
+    """One chunk of patches in segment coordinates.
+
+    Attributes
+    ----------
+    face : ndarray, shape (p,), int64
+        Parent face index into the scene.
+    coords : ndarray, shape (p, 3)
+        Centroid (along, starboard, up) relative to the segment origin, metres.
+    normal : ndarray, shape (p, 3)
+        Parent face's unit normal in (along, starboard, up) components.
+    edges : ndarray, shape (p, 3, 2)
+        The patch's two edge vectors (segment coordinates), oriented so that its corners are
+        ``coords + edges @ (-1/3, -1/3)``, ``(2/3, -1/3)`` and ``(-1/3, 2/3)``.
+    """
+
+    face: np.ndarray
+    coords: np.ndarray
+    normal: np.ndarray
+    edges: np.ndarray
+
+
+@dataclass
+class _Stats:
+    """Counters for the log and the metadata."""
+
+    patches: int = 0
+    rays: int = 0
+    visible: int = 0
+
+
+def render_reference(
+    scene: Scene,
+    sonar: Sonar,
+    trajectory: Trajectory,
+    *,
+    patch_size: float | None = None,
+) -> SonarImage:
+    """Render raw side-scan intensity by summing small visible surface patches.
+
+    Parameters
+    ----------
+    scene : Scene
+        Triangles with reflectivity, world metres.
+    sonar : Sonar
+        Range sampling, beam pattern, tilt and sides.
+    trajectory : Trajectory
+        Ping poses; grouped into straight segments with tolerance ``sonar.range_bin / 4``.
+    patch_size : float, optional
+        Largest patch edge in metres; default ``sonar.range_bin / 4``.
+
+    Returns
+    -------
+    SonarImage
+        One float32 array of shape (pings, ``sonar.n_bins``) per side in ``sonar.sides``,
+        holding ``Σ Φ R max(0, cos θ) dA`` in m² (K = 1). ``metadata`` has ``renderer``
+        ("reference"), ``patch_size``, ``n_patches`` (patches inside a slab and the range
+        window), ``n_rays`` and ``time_s``.
+
+    Raises
+    ------
+    TypeError
+        If an argument has the wrong type.
+    SonarRasterError
+        If ``patch_size`` is not a positive number, or no ray caster is available.
+    """
+    _check_inputs(scene, sonar, trajectory)
+    size = sonar.range_bin / 4.0 if patch_size is None else patch_size
+    if not (isinstance(size, (int, float)) and math.isfinite(size) and size > 0):
+        raise SonarRasterError(f"patch_size must be a positive number of metres, got {size!r}")
+    start = time.perf_counter()
+    local = scene.bounds.mean(axis=0)
+    surface = _surface(scene, local, float(size))
+    caster = _ray_caster(scene.vertices - local, scene.faces)
+    acc = {side: np.zeros((trajectory.n_pings, sonar.n_bins)) for side in sonar.sides}
+    stats = _Stats()
+    for segment in trajectory.segments(sonar.range_bin / 4.0):
+        frame = _frame(segment, trajectory, local, size)
+        _render_segment(surface, caster, sonar, frame, acc, stats)
+    elapsed = time.perf_counter() - start
+    log.info(
+        "reference: %d patches, %d rays in %.2f s (%.3g patches/s)",
+        stats.patches,
+        stats.rays,
+        elapsed,
+        stats.patches / max(elapsed, 1e-9),
+    )
+    metadata = {
+        "renderer": "reference",
+        "patch_size": float(size),
+        "n_patches": stats.patches,
+        "n_rays": stats.rays,
+        "time_s": elapsed,
+    }
+    sides = {side: a.astype(np.float32) for side, a in acc.items()}
+    return SonarImage(sides=sides, sonar=sonar, metadata=metadata)
+
+
+def _check_inputs(scene: Scene, sonar: Sonar, trajectory: Trajectory) -> None:
+    for value, kind, name in (
+        (scene, Scene, "scene"),
+        (sonar, Sonar, "sonar"),
+        (trajectory, Trajectory, "trajectory"),
+    ):
+        if not isinstance(value, kind):
+            raise TypeError(f"{name} must be a {kind.__name__}, got {type(value).__name__}")
+
+
+def _surface(scene: Scene, local: np.ndarray, patch_size: float) -> _Surface:
+    """Local-coordinate triangles, normals, subdivision counts and patch weights."""
+    tri = scene.triangles() - local
+    normal, area = scene.face_normals_areas()
+    edges = np.linalg.norm(tri[:, [1, 2, 0]] - tri, axis=2)
+    n_sub = np.maximum(1, np.ceil(edges.max(axis=1) / patch_size)).astype(np.int64)
+    weight = scene.reflectivity * area / n_sub.astype(np.float64) ** 2
+    return _Surface(tri, normal, n_sub, weight)
+
+
+def _frame(
+    segment: Segment, trajectory: Trajectory, local: np.ndarray, patch_size: float
+) -> _Frame:
+    sl = slice(segment.first, segment.first + segment.count)
+    return _Frame(
+        origin=segment.origin - local,
+        along=segment.along,
+        starboard=segment.starboard,
+        up=segment.up,
+        spacing=float(segment.spacing),
+        width=float(segment.width),
+        first=segment.first,
+        count=segment.count,
+        roll=trajectory.roll[sl],
+        patch_size=patch_size,
+        fore=segment.fore,
+        shear=segment.shear,
+    )
+
+
+def _ray_caster(vertices: np.ndarray, faces: np.ndarray):
+    """Embree intersector when embreex imports, else trimesh's pure-numpy one."""
+    import trimesh
+
+    mesh = trimesh.Trimesh(vertices=vertices, faces=faces, process=False, validate=False)
+    try:
+        # trimesh.ray wraps a failed embreex import instead of raising: test it directly
+        import embreex  # noqa: F401
+    except ImportError:
+        from trimesh.ray import ray_triangle
+
+        log.info("embreex not available: using trimesh's slow ray_triangle intersector")
+        return ray_triangle.RayMeshIntersector(mesh)
+    from trimesh.ray import ray_pyembree
+
+    return ray_pyembree.RayMeshIntersector(mesh)
+
+
+def _bounds(sonar: Sonar, frame: _Frame) -> np.ndarray:
+    """Box in segment coordinates (along, starboard, up) that can contribute, shape (3, 2)."""
+    reach = sonar.n_bins * sonar.range_bin
+    x_lo = -reach if "port" in sonar.sides else 0.0
+    x_hi = reach if "starboard" in sonar.sides else 0.0
+    t_lo, t_hi = frame.t_bounds
+    margin = frame.patch_size  # a patch whose centroid is outside may still reach in
+    return np.array([[t_lo - margin, t_hi + margin], [x_lo, x_hi], [-reach, reach]])
+
+
+def _render_segment(
+    surface: _Surface,
+    caster,
+    sonar: Sonar,
+    frame: _Frame,
+    acc: dict[str, np.ndarray],
+    stats: _Stats,
+) -> None:
+    """Add one segment's patches to ``acc`` (side -> (pings, bins) float64)."""
+    bounds = _bounds(sonar, frame)
+    proj = project(surface.tri, frame.origin, frame.axes)
+    ids = np.flatnonzero(overlaps(proj, bounds))
+    if len(ids) == 0:
+        return
+    normal = surface.normal[ids] @ frame.fan_axes.T
+    for runs in runs_in_box(
+        proj, surface.n_sub, ids, bounds, row_block=_ROW_CHUNK, chunk=_PATCH_CHUNK
+    ):
+        patches = _make_patches(runs, ids, proj, normal, surface.n_sub)
+        _accumulate(surface, caster, sonar, frame, patches, acc, stats)
+
+
+def _make_patches(
+    runs: Runs, ids: np.ndarray, proj: np.ndarray, normal: np.ndarray, n_sub: np.ndarray
+) -> _Patches:
+    """Materialise the patches of some runs (``runs.tri`` and ``normal`` index ``ids``)."""
+    run, offset = runs.cells()
+    kept = runs.tri[run]
+    face = ids[kept]
+    start = runs.base + runs.slope * runs.lo[:, None]
+    scale = runs.sign[run] / n_sub[face]
+    return _Patches(
+        face=face,
+        coords=start[run] + runs.slope[run] * offset[:, None],
+        normal=normal[kept],
+        edges=proj[face][:, :, 1:] * scale[:, None, None],
+    )
+
+
+def _accumulate(
+    surface: _Surface,
+    caster,
+    sonar: Sonar,
+    frame: _Frame,
+    patches: _Patches,
+    acc: dict[str, np.ndarray],
+    stats: _Stats,
+) -> None:
+    """Test one chunk of patches and add the visible ones to ``acc``.
+
+    A patch's area is shared among the pings whose slabs and the range bins whose rings it
+    overlaps (see :func:`_spread`), each direction on its own (a product of the two shares).
+    """
+    t, x, v = patches.coords.T
+    corners = patches.coords[:, None, :] + np.einsum("pcj,kj->pkc", patches.edges, _CORNER_OFFSETS)
+    t_lo, t_hi = frame.t_bounds
+    inside = (corners[..., 0].max(axis=1) > t_lo) & (corners[..., 0].min(axis=1) < t_hi)
+    starboard = x > 0
+    on_side = np.where(starboard, "starboard" in sonar.sides, "port" in sonar.sides) & (x != 0)
+    r = np.hypot(x, v)
+    near = np.hypot(corners[..., 1], corners[..., 2]).min(axis=1)
+    candidate = inside & on_side & (near < sonar.n_bins * sonar.range_bin)
+    stats.patches += int(np.count_nonzero(candidate))
+    cos_num = -(x * patches.normal[:, 1] + v * patches.normal[:, 2])
+    sel = np.flatnonzero(candidate & (cos_num > 0))
+    if len(sel) == 0:
+        return
+    origins = frame.origin + t[sel, None] * frame.along
+    dirs = (x[sel, None] * frame.starboard + v[sel, None] * frame.up) / r[sel, None]
+    vis = _visible(caster, surface, origins, dirs, r[sel], patches.face[sel])
+    stats.rays += len(sel)
+    stats.visible += int(vis.sum())
+    keep = sel[vis]
+    face = patches.face[keep]
+    weight = surface.patch_weight[face] * cos_num[keep] / r[keep]
+    depression = np.arctan2(-v[keep], np.abs(x[keep]))
+    c = corners[keep]
+    bins, in_bin = _spread(np.hypot(c[..., 1], c[..., 2]), sonar.range_bin, 0.0)
+    slab = frame.spacing if frame.spacing > 0 else frame.width
+    pings, in_slab = _spread(c[..., 0], slab, -0.5 * slab)
+    valid = (pings >= 0) & (pings < (frame.count if frame.spacing > 0 else 1))
+    in_slab = np.where(valid, in_slab, 0.0)
+    shape = (len(keep), pings.shape[1], bins.shape[1])
+    _deposit(
+        sonar,
+        frame,
+        acc,
+        np.broadcast_to(np.where(valid, pings, 0)[:, :, None], shape).ravel(),
+        np.broadcast_to(bins[:, None, :], shape).ravel(),
+        np.broadcast_to(starboard[keep, None, None], shape).ravel(),
+        np.broadcast_to(depression[:, None, None], shape).ravel(),
+        (weight[:, None, None] * in_slab[:, :, None] * in_bin[:, None, :]).ravel(),
+    )
+
+
+#: Barycentric offsets of a patch's corners from its centroid along its two edges.
+_CORNER_OFFSETS = np.array([[-1.0, -1.0], [2.0, -1.0], [-1.0, 2.0]]) / 3.0
+
+
+def _spread(r: np.ndarray, bin_size: float, offset: float) -> tuple[np.ndarray, np.ndarray]:
+    """Share each patch's area among the bins ``[offset + k b, offset + (k + 1) b)`` it covers.
+
+    Used for range bins and for along-track ping slabs. A flat triangle over which a
+    coordinate varies linearly has a "hat" area density in it, rising
+    linearly from its nearest to its middle corner and falling to its farthest; its cumulative
+    area is ``(s - r0)² / ((r1 - r0)(r2 - r0))`` up to ``r1`` and
+    ``1 - (r2 - s)² / ((r2 - r0)(r2 - r1))`` after. Integrating it over each bin removes the
+    aliasing of putting a whole patch in the bin of its centroid.
+
+    Parameters
+    ----------
+    r : ndarray, shape (p, 3)
+        The coordinate (slant range, or along-track position) at each patch corner, metres.
+    bin_size : float
+        Bin width b, metres.
+    offset : float
+        Where bin 0 starts, metres.
+
+    Returns
+    -------
+    bins : ndarray, shape (p, k), int64
+        Bin indices (``-1`` where unused).
+    fractions : ndarray, shape (p, k)
+        Share of the patch's area in each bin; rows sum to 1.
+    """
+    r0, r1, r2 = (c[:, None] for c in np.sort(r - offset, axis=1).T)  # columns over bins
+    first = np.floor(r0[:, 0] / bin_size).astype(np.int64)
+    last = np.floor(r2[:, 0] / bin_size).astype(np.int64)
+    k = int((last - first).max(initial=0)) + 1
+    span = r2 - r0
+    tiny = span <= 1e-12 * np.maximum(r2, 1.0)
+    d01 = np.where(tiny, 1.0, np.maximum(r1 - r0, 0.0) * np.where(tiny, 1.0, span))
+    d12 = np.where(tiny, 1.0, np.maximum(r2 - r1, 0.0) * np.where(tiny, 1.0, span))
+
+    def cdf(s: np.ndarray) -> np.ndarray:
+        rising = (s - r0) ** 2 / np.where(d01 > 0, d01, 1.0)
+        falling = 1.0 - (r2 - s) ** 2 / np.where(d12 > 0, d12, 1.0)
+        out = np.where(s <= r1, np.where(d01 > 0, rising, 1.0), falling)
+        out = np.where(s <= r0, 0.0, np.where(s >= r2, 1.0, out))
+        return np.where(tiny, (s >= r0).astype(np.float64), out)
+
+    bins = first[:, None] + np.arange(k)
+    edges = bins * bin_size
+    fractions = cdf(np.minimum(edges + bin_size, r2 + 1.0)) - cdf(edges)
+    fractions = np.where(tiny, (np.arange(k) == 0).astype(np.float64), fractions)
+    used = bins <= last[:, None]
+    return np.where(used, bins, -1), np.where(used, fractions, 0.0)
+
+
+def _visible(
+    caster,
+    surface: _Surface,
+    origins: np.ndarray,
+    dirs: np.ndarray,
+    r: np.ndarray,
+    parent: np.ndarray,
+) -> np.ndarray:
+    """Test visibility: the first hit from the track is the patch's own face or not nearer."""
+    try:
+        hit = np.asarray(caster.intersects_first(origins, dirs), dtype=np.int64)
+    except ImportError as exc:
+        raise SonarRasterError(
+            f"no ray caster available ({exc}); install embreex (or rtree for the slow fallback)"
+        ) from None
+    vis = (hit < 0) | (hit == parent)
+    other = np.flatnonzero(~vis)
+    if len(other):
+        dist = _hit_distance(surface, hit[other], origins[other], dirs[other])
+        vis[other] = dist >= r[other] * (1.0 - VISIBILITY_REL_TOL) - VISIBILITY_ABS_TOL
+    return vis
+
+
+def _hit_distance(
+    surface: _Surface, hit: np.ndarray, origins: np.ndarray, dirs: np.ndarray
+) -> np.ndarray:
+    """Distance along each ray to the plane of the face it hit, metres, in float64.
+
+    A ray lying in the face's plane (grazing) gets the distance to the nearest corner's
+    projection onto the ray, where it enters the face.
+    """
+    tri = surface.tri[hit]
+    normal = surface.normal[hit]
+    denom = np.einsum("ij,ij->i", normal, dirs)
+    grazing = np.abs(denom) < 1e-9
+    num = np.einsum("ij,ij->i", normal, tri[:, 0] - origins)
+    along = np.einsum("ikj,ij->ik", tri - origins[:, None, :], dirs).min(axis=1)
+    return np.where(grazing, along, num / np.where(grazing, 1.0, denom))
+
+
+def _deposit(
+    sonar: Sonar,
+    frame: _Frame,
+    acc: dict[str, np.ndarray],
+    ping: np.ndarray,
+    rbin: np.ndarray,
+    starboard: np.ndarray,
+    depression: np.ndarray,
+    weight: np.ndarray,
+) -> None:
+    """Multiply by the beam and sum into the pings' range bins of each side."""
+    n_bins = sonar.n_bins
+    inside = (rbin >= 0) & (rbin < n_bins) & (weight > 0)
+    ping, rbin, starboard = ping[inside], rbin[inside], starboard[inside]
+    depression, weight = depression[inside], weight[inside]
+    for side, sign, mask in (("starboard", 1.0, starboard), ("port", -1.0, ~starboard)):
+        if side not in acc or not mask.any():
+            continue
+        rows = acc[side]
+        if frame.spacing > 0:
+            roll = frame.roll[ping[mask]]
+            w = weight[mask] * _beam(sonar, depression[mask] - sonar.tilt - sign * roll)
+            flat = (frame.first + ping[mask]) * n_bins + rbin[mask]
+            lo = int(flat.min())
+            sums = np.bincount(flat - lo, weights=w)
+            rows.reshape(-1)[lo : lo + len(sums)] += sums  # a view: acc is C-contiguous
+            continue
+        for roll in np.unique(frame.roll):
+            w = weight[mask] * _beam(sonar, depression[mask] - sonar.tilt - sign * roll)
+            row = np.bincount(rbin[mask], weights=w, minlength=n_bins)
+            pings = frame.first + np.flatnonzero(frame.roll == roll)
+            rows[pings] += row
+
+
+def _beam(sonar: Sonar, off_axis: np.ndarray) -> np.ndarray:
+    """Two-way beam gain Φ at angles off the beam axis; 1 without evaluating a uniform beam."""
+    if sonar.beam.is_uniform:
+        return np.ones_like(off_axis)
+    return sonar.beam(off_axis)
