@@ -9,9 +9,9 @@ import pytest
 from conftest import box_from_bounds, plane
 from scipy import special, stats
 
+from sonar_raster.effects import chain as fx_module
 from sonar_raster.effects.absorption import francois_garrison
 from sonar_raster.effects.chain import Effects, apply_effects, load_tvg_curve
-from sonar_raster.effects import chain as fx_module
 from sonar_raster.errors import SonarRasterError
 from sonar_raster.image import SonarImage
 from sonar_raster.render.analytic import flat_seabed_profile
@@ -516,8 +516,8 @@ def test_cli_effects_options(tmp_path):
 
 
 def test_cli_options_merge_over_the_scene_effects():
-    from sonar_raster.cli.effects_options import effects_from_args
     from sonar_raster.cli.app import _parser
+    from sonar_raster.cli.effects_options import effects_from_args
 
     def parse(*extra):
         return _parser().parse_args(["render", "x.toml", "-o", "o.png", *extra])

@@ -264,7 +264,7 @@ def test_unwritable_directory(tmp_path, monkeypatch):
     def refuse(tmp, *args):
         raise PermissionError(13, "Permission denied", str(tmp))
 
-    monkeypatch.setattr(io, "_write_oiio", refuse)
+    monkeypatch.setattr(io, "write_oiio", refuse)
     with pytest.raises(SonarRasterError, match="cannot write .*x.png: Permission denied"):
         io.write_image(random_image(), tmp_path / "x.png")
     assert listing(tmp_path) == []
@@ -319,7 +319,7 @@ def test_failure_after_image_temp_leaves_existing_files_untouched(tmp_path, monk
         tmp.write_text("{half")
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(io, "_write_json", broken_json)
+    monkeypatch.setattr(io, "write_json", broken_json)
     with pytest.raises(SonarRasterError, match="No space left on device"):
         io.write_image(random_image(), tmp_path / "out.png")
     assert len(seen) == 1 and seen[0].startswith(".out.png.") and seen[0].endswith(".png")
@@ -335,7 +335,7 @@ def test_encoder_failure_leaves_existing_file_untouched(tmp_path, monkeypatch):
         tmp.write_bytes(b"\x76\x2f\x31\x01 partial")
         raise RuntimeError("disk went away")
 
-    monkeypatch.setattr(io, "_write_oiio", half_written)
+    monkeypatch.setattr(io, "write_oiio", half_written)
     with pytest.raises(SonarRasterError, match="cannot write .*out.exr: disk went away"):
         io.write_image(random_image(), tmp_path / "out.exr")
     assert listing(tmp_path) == ["out.exr"]

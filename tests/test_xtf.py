@@ -320,7 +320,7 @@ def test_geotiff_places_values_at_their_coordinates(tmp_path):
     import rasterio
 
     from sonar_raster.invert.xtf import geotiff_jobs, grid, ground_positions
-    from sonar_raster.io.images import _commit
+    from sonar_raster.io.commit import commit
 
     pings = 60
     heading = np.full(pings, math.radians(30.0))
@@ -336,7 +336,7 @@ def test_geotiff_places_values_at_their_coordinates(tmp_path):
         layers = {"elevation": e - east[0], "reflectivity": n - north[0], "mosaic": 0 * e}
         samples.append((e, n, layers))
     raster = grid(samples, 0.1, "EPSG:32619", along_factor=3)
-    _commit(geotiff_jobs(tmp_path, raster))
+    commit(geotiff_jobs(tmp_path, raster))
     with rasterio.open(tmp_path / "elevation.tif") as src:
         assert src.crs.to_epsg() == 32619
         values = src.read(1)

@@ -49,7 +49,7 @@ from sonar_raster.cli.track import draw_waterfall, parse_pings
 from sonar_raster.errors import SonarRasterError
 from sonar_raster.invert.shadows import find_shadows, object_pings
 from sonar_raster.invert.xtf import georeference, geotiff_jobs, invert_xtf
-from sonar_raster.io.images import _commit
+from sonar_raster.io.commit import commit
 
 SEABED_BEYOND_M = 2.0
 
@@ -222,7 +222,7 @@ def main(argv: list[str] | None = None) -> int:
 
     raster = georeference(result) if nav.valid.any() else None
     if raster is not None:
-        _commit(geotiff_jobs(out, raster))
+        commit(geotiff_jobs(out, raster))
     _maps_figure(out / "inversion.png", result, raster)
     preview = "preview_az*.png"
     for side, inv in result.sides.items():

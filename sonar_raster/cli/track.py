@@ -97,7 +97,7 @@ def summary_lines(track: BottomTrack, recorded: np.ndarray, range_bin: float) ->
 
 def write_track(out: Path, track: BottomTrack, recorded: np.ndarray, image) -> Path:
     """Write the track as .csv, or as .png when matplotlib is installed (else .csv beside it)."""
-    from ..io.images import _commit
+    from ..io.commit import commit
 
     if out.suffix.lower() == ".png":
         try:
@@ -107,9 +107,9 @@ def write_track(out: Path, track: BottomTrack, recorded: np.ndarray, image) -> P
             print(f"matplotlib is not installed: writing {csv} instead of {out}")
             out = csv
     if out.suffix.lower() == ".csv":
-        _commit([(out, partial(_write_csv, track=track, recorded=recorded))])
+        commit([(out, partial(_write_csv, track=track, recorded=recorded))])
     else:
-        _commit([(out, partial(_plot_track, track=track, recorded=recorded, image=image))])
+        commit([(out, partial(_plot_track, track=track, recorded=recorded, image=image))])
     return out
 
 

@@ -54,13 +54,13 @@ def _read_png(path: Path) -> np.ndarray:
 def _write_map(tmp: Path, values: np.ndarray, name: str) -> None:
     import OpenImageIO as oiio
 
-    from ..io.images import _write_oiio
+    from ..io.commit import write_oiio
 
     pixels = np.ascontiguousarray(values, dtype=np.float32)[:, :, np.newaxis]
     spec = oiio.ImageSpec(pixels.shape[1], pixels.shape[0], 1, oiio.FLOAT)
     spec.channelnames = (name,)
     spec.attribute("compression", "zip")
-    _write_oiio(tmp, pixels, spec)
+    write_oiio(tmp, pixels, spec)
 
 
 def summary(inv: Inversion, side: str, range_bin: float, extra: dict | None = None) -> dict:
@@ -125,7 +125,7 @@ def write_products(
     in pixels; GL ``backend`` as :func:`.gl.create_context`). Every file is
     made before any is renamed into place, so a failure leaves no product behind.
     """
-    from ..io.images import _commit, _write_json
+    from ..io.commit import commit, write_json
 
     maps = {"elevation": inv.elevation, "reflectivity": inv.reflectivity, "beam": inv.beam}
     if inv.reprojected is not None:
@@ -145,11 +145,11 @@ def write_products(
     jobs.append(
         (
             directory / "inversion.json",
-            partial(_write_json, doc=summary(inv, side, range_bin, extra)),
+            partial(write_json, doc=summary(inv, side, range_bin, extra)),
         )
     )
     directory.mkdir(parents=True, exist_ok=True)
-    return _commit(jobs)
+    return commit(jobs)
 
 
 def _mesh_jobs(inv, directory, side, jobs, mesh, previews, size, backend) -> dict:
@@ -192,10 +192,10 @@ def _write_bytes(tmp: Path, data: bytes) -> None:
 def _write_png(tmp: Path, pixels: np.ndarray) -> None:
     import OpenImageIO as oiio
 
-    from ..io.images import _write_oiio
+    from ..io.commit import write_oiio
 
     spec = oiio.ImageSpec(pixels.shape[1], pixels.shape[0], pixels.shape[2], oiio.UINT8)
-    _write_oiio(tmp, np.ascontiguousarray(pixels, dtype=np.uint8), spec)
+    write_oiio(tmp, np.ascontiguousarray(pixels, dtype=np.uint8), spec)
 
 
 def energy_summary(inv: Inversion) -> list[str]:

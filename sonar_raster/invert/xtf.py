@@ -305,7 +305,7 @@ def _write_geotiff(tmp: Path, values: np.ndarray, raster: Raster, description: s
 
 
 def geotiff_jobs(directory: Path, raster: Raster) -> list[tuple[Path, Callable[[Path], None]]]:
-    """(path, writer) jobs for :func:`sonar_raster.io.images._commit`, one GeoTIFF per layer."""
+    """(path, writer) jobs for :func:`sonar_raster.io.commit.commit`, one GeoTIFF per layer."""
     jobs: list[tuple[Path, Callable[[Path], None]]] = []
     for name, description in GEOTIFFS.items():
         layer = raster.layers[name.removesuffix(".tif")]
@@ -317,7 +317,7 @@ def geotiff_jobs(directory: Path, raster: Raster) -> list[tuple[Path, Callable[[
 def invert_xtf_command(args: argparse.Namespace) -> int:
     """``sonar-raster invert FILE.xtf -o DIR``: both sides, bottom-tracked, with GeoTIFFs."""
     from ..cli.track import _write_csv, parse_pings, summary_lines
-    from ..io.images import _commit
+    from ..io.commit import commit
     from .solver import BeamProfile
     from .write import energy_summary, write_products
 
@@ -350,7 +350,7 @@ def invert_xtf_command(args: argparse.Namespace) -> int:
             mesh=not getattr(args, "no_mesh", False),
             previews=not getattr(args, "no_previews", False),
         )  # fmt: skip
-    written += _commit(extra)
+    written += commit(extra)
     if not args.quiet:
         for line in summary_lines(result.track, nav.altitude, image.sonar.range_bin):
             print(line)

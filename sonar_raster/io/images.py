@@ -11,7 +11,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import secrets
 from collections.abc import Callable
 from datetime import datetime, timezone
 from importlib import metadata as importlib_metadata
@@ -24,6 +23,7 @@ import OpenImageIO as oiio
 from ..errors import SonarRasterError
 from ..image import SonarImage
 from ..sonar import SIDES
+from .commit import check_directory, commit, write_json, write_oiio
 
 UNITS = "m^2 (beam-weighted backscattering area, K=1)"
 LAYOUT = "rows=pings, columns=slant-range bins near->far"
@@ -151,8 +151,8 @@ def write_image(
         )
     if bit_depth not in (8, 16):
         raise SonarRasterError(f"PNG bit depth must be 8 or 16, got {bit_depth!r}")
-    sides = _checked_sides(image)
-    _check_directory(path)
+    sides = checked_sides(image)
+    check_directory(path)
     display = SonarImage(sides, image.sonar).display()
     if dynamic_range_db is None:
         dynamic_range_db = auto_dynamic_range(display)
@@ -164,15 +164,15 @@ def write_image(
     }
     jobs: list[tuple[Path, Callable[[Path], None]]] = []
     if suffix == ".exr":
-        exr_attrs = _exr_attributes(image)
+        exr_attrs = exr_attributes(image)
         jobs.append((path, lambda tmp: _write_exr(tmp, sides, exr_attrs)))
     else:
-        png_attrs = _png_attributes(image, mapping, bit_depth)
+        png_attrs = png_attributes(image, mapping, bit_depth)
         jobs.append((path, lambda tmp: _write_png(tmp, codes, bit_depth, png_attrs)))
     if sidecar:
-        doc = _sidecar(image, mapping)
-        jobs.append((path.with_suffix(".json"), lambda tmp: _write_json(tmp, doc)))
-    return _commit(jobs)
+        doc = sidecar_document(image, mapping)
+        jobs.append((path.with_suffix(".json"), lambda tmp: write_json(tmp, doc)))
+    return commit(jobs)
 
 
 def read_pixels(path: str | os.PathLike) -> tuple[np.ndarray, oiio.ImageSpec]:
@@ -221,7 +221,7 @@ def read_exr(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], dict]:
     return sides, {attr.name: attr.value for attr in spec.extra_attribs}
 
 
-def _checked_sides(image: SonarImage) -> dict[str, np.ndarray]:
+def checked_sides(image: SonarImage) -> dict[str, np.ndarray]:
     """Check the image and return its sides as float32 (pings, bins), port first."""
     if not image.sides:
         raise SonarRasterError("the image has no sides; nothing to write")
@@ -246,21 +246,6 @@ def _checked_sides(image: SonarImage) -> dict[str, np.ndarray]:
     return {name: array.astype(np.float32, copy=False) for name, array in raw.items()}
 
 
-def _check_directory(path: Path) -> None:
-    directory = path.parent
-    if not directory.exists():
-        raise SonarRasterError(
-            f"cannot write {path}: directory {directory} does not exist; create it first"
-        )
-    if not directory.is_dir():
-        raise SonarRasterError(f"cannot write {path}: {directory} is not a directory")
-
-
-def temp_name(final: Path) -> Path:
-    """A hidden, unique temporary name beside ``final`` (``.<name>.<token><suffix>``)."""
-    return final.with_name(f".{final.name}.{secrets.token_hex(6)}{final.suffix}")
-
-
 def png_type(bit_depth: int) -> tuple[type, Any]:
     """The numpy integer type and OpenImageIO type of an 8- or 16-bit PNG."""
     return (np.uint8, oiio.UINT8) if bit_depth == 8 else (np.uint16, oiio.UINT16)
@@ -272,44 +257,6 @@ def quantised_codes(codes: np.ndarray, bit_depth: int) -> tuple[np.ndarray, Any]
     return np.rint(codes * np.iinfo(dtype).max).astype(dtype), fmt
 
 
-def _commit(jobs: list[tuple[Path, Callable[[Path], None]]]) -> list[Path]:
-    """Run each writer on a temporary file, then rename all of them into place."""
-    temps: list[Path] = []
-    try:
-        for final, writer in jobs:
-            tmp = temp_name(final)
-            temps.append(tmp)
-            try:
-                writer(tmp)
-            except OSError as exc:
-                raise SonarRasterError(f"cannot write {final}: {exc.strerror or exc}") from None
-            except RuntimeError as exc:
-                raise SonarRasterError(f"cannot write {final}: {exc}") from None
-        for tmp, (final, _) in zip(temps, jobs, strict=True):
-            try:
-                os.replace(tmp, final)
-            except OSError as exc:
-                raise SonarRasterError(f"cannot write {final}: {exc.strerror or exc}") from None
-    finally:
-        for tmp in temps:
-            tmp.unlink(missing_ok=True)
-    return [final for final, _ in jobs]
-
-
-def _write_oiio(tmp: Path, pixels: np.ndarray, spec: oiio.ImageSpec) -> None:
-    """Encode (h, w, c) pixels with OpenImageIO; raise RuntimeError on failure."""
-    out = oiio.ImageOutput.create(str(tmp))
-    if out is None:
-        raise RuntimeError(oiio.geterror() or "no OpenImageIO writer for this format")
-    try:
-        if not out.open(str(tmp), spec):
-            raise RuntimeError(out.geterror())
-        if not out.write_image(pixels):
-            raise RuntimeError(out.geterror())
-    finally:
-        out.close()
-
-
 def _write_exr(tmp: Path, sides: dict[str, np.ndarray], attrs: dict) -> None:
     pixels = np.stack(list(sides.values()), axis=-1)  # (pings, bins, channels), never 2-D
     spec = oiio.ImageSpec(pixels.shape[1], pixels.shape[0], pixels.shape[2], oiio.FLOAT)
@@ -317,7 +264,7 @@ def _write_exr(tmp: Path, sides: dict[str, np.ndarray], attrs: dict) -> None:
     spec.attribute("compression", "zip")
     for name, value in attrs.items():
         spec.attribute(name, value)
-    _write_oiio(tmp, pixels, spec)
+    write_oiio(tmp, pixels, spec)
 
 
 def _write_png(tmp: Path, codes: np.ndarray, bit_depth: int, attrs: dict) -> None:
@@ -327,13 +274,7 @@ def _write_png(tmp: Path, codes: np.ndarray, bit_depth: int, attrs: dict) -> Non
     spec.channelnames = ("Y",)
     for name, value in attrs.items():
         spec.attribute(name, value)
-    _write_oiio(tmp, quantised, spec)
-
-
-def _write_json(tmp: Path, doc: object) -> None:
-    with open(tmp, "x", encoding="utf-8") as fh:
-        json.dump(doc, fh, indent=2, allow_nan=False)
-        fh.write("\n")
+    write_oiio(tmp, quantised, spec)
 
 
 def _header_value(value: object, as_text: bool) -> str | int | float:
@@ -370,7 +311,8 @@ def _metadata_attributes(metadata: dict) -> dict[str, str]:
     return flat
 
 
-def _exr_attributes(image: SonarImage) -> dict:
+def exr_attributes(image: SonarImage) -> dict:
+    """EXR header attributes of an image: ``sonar:*`` fields and its metadata."""
     attrs: dict = {f"sonar:{k}": _header_value(v, False) for k, v in image.sonar.to_dict().items()}
     attrs["sonar:units"] = UNITS
     attrs["sonar:layout"] = LAYOUT
@@ -378,7 +320,7 @@ def _exr_attributes(image: SonarImage) -> dict:
     return attrs
 
 
-def _png_attributes(image: SonarImage, mapping: dict, bit_depth: int) -> dict[str, str]:
+def png_attributes(image: SonarImage, mapping: dict, bit_depth: int) -> dict[str, str]:
     """PNG text chunks (PNG keeps only strings): sonar, display mapping, metadata."""
     attrs = {f"sonar:{k}": str(_header_value(v, True)) for k, v in image.sonar.to_dict().items()}
     max_code = 2**bit_depth - 1
@@ -402,7 +344,8 @@ def _png_attributes(image: SonarImage, mapping: dict, bit_depth: int) -> dict[st
     return attrs
 
 
-def _sidecar(image: SonarImage, mapping: dict) -> object:
+def sidecar_document(image: SonarImage, mapping: dict) -> object:
+    """The JSON sidecar document of an image written with display ``mapping``."""
     return _jsonable(
         {
             "sonar": image.sonar.to_dict(),

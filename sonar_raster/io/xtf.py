@@ -613,7 +613,7 @@ def write_xtf(
     alt = np.broadcast_to(np.asarray(0.0 if altitude is None else altitude, float), (pings,))
     sonar = image.sonar
     interval = ping_interval or 2.0 * bins * sonar.range_bin / sonar.sound_speed
-    from .images import _commit
+    from .commit import commit
 
     final = Path(path)
     if not final.parent.is_dir():
@@ -623,7 +623,7 @@ def write_xtf(
         with open(tmp, "xb") as fh:
             XtfWriter(fh, sample_format, origin, start_time, interval).write(image, trajectory, alt)
 
-    _commit([(final, writer)])
+    commit([(final, writer)])
     return final
 
 

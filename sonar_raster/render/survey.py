@@ -22,6 +22,7 @@ import OpenImageIO as oiio
 from ..errors import SonarRasterError
 from ..image import SonarImage
 from ..io import images as sio
+from ..io.commit import check_directory, temp_name, write_json
 from ..scene import Scene
 from ..sonar import SIDES, Sonar
 from ..trajectory import Trajectory
@@ -64,7 +65,7 @@ class ExrStreamWriter:
         spec.channelnames = self.channels
         spec.attribute("compression", "zip")
         header = SonarImage(block.sides, block.sonar, _whole_track_metadata(block.metadata))
-        for name, value in sio._exr_attributes(header).items():
+        for name, value in sio.exr_attributes(header).items():
             spec.attribute(name, value)
         out = oiio.ImageOutput.create(str(self.tmp))
         if out is None or not out.open(str(self.tmp), spec):
@@ -126,13 +127,13 @@ def render_survey(
     for path in paths:
         if path.suffix.lower() not in (*sio.SUPPORTED, ".xtf"):
             raise SonarRasterError(f"cannot write {path}: use .exr, .png or .xtf")
-        sio._check_directory(path)
+        check_directory(path)
     xtf_final = next((p for p in paths if p.suffix.lower() == ".xtf"), None)
     if bit_depth not in (8, 16):
         raise SonarRasterError(f"PNG bit depth must be 8 or 16, got {bit_depth!r}")
     exr_final = next((p for p in paths if p.suffix.lower() == ".exr"), None)
-    exr_tmp = sio.temp_name(exr_final or paths[0].with_suffix(".exr"))
-    xtf_tmp = sio.temp_name(xtf_final) if xtf_final else None
+    exr_tmp = temp_name(exr_final or paths[0].with_suffix(".exr"))
+    xtf_tmp = temp_name(xtf_final) if xtf_final else None
     temps: list[Path] = [exr_tmp] + ([xtf_tmp] if xtf_tmp else [])
     try:
         stats, summary, meta = _stream_blocks(
@@ -155,17 +156,17 @@ def render_survey(
                 jobs.append((xtf_tmp, path))
                 continue
             if path.suffix.lower() == ".png":
-                tmp = sio.temp_name(path)
+                tmp = temp_name(path)
                 temps.append(tmp)
                 _png_from_exr(exr_tmp, tmp, header, mapping, bit_depth, chunk_pings)
                 jobs.append((tmp, path))
             elif path == exr_final:
                 jobs.append((exr_tmp, path))
-            sidecar = sio.temp_name(path.with_suffix(".json"))
+            sidecar = temp_name(path.with_suffix(".json"))
             temps.append(sidecar)
-            doc = sio._sidecar(header, mapping)
+            doc = sio.sidecar_document(header, mapping)
             doc["shape"] = [trajectory.n_pings, sonar.n_bins]  # type: ignore[index]
-            sio._write_json(sidecar, doc)
+            write_json(sidecar, doc)
             jobs.append((sidecar, path.with_suffix(".json")))
         for tmp, final in jobs:
             os.replace(tmp, final)
@@ -205,7 +206,7 @@ def _stream_blocks(
             blocks = tqdm(blocks, total=total, desc="rendering", unit="block", disable=None)
         try:
             for block in blocks:
-                sio._checked_sides(block)  # finite, one shape: raises before anything is kept
+                sio.checked_sides(block)  # finite, one shape: raises before anything is kept
                 writer.write(block)
                 if xtf is not None:
                     xtf.write(block)
@@ -267,7 +268,7 @@ def _png_from_exr(
         fmt = sio.png_type(bit_depth)[1]
         out_spec = oiio.ImageSpec(width, spec.height, 1, fmt)
         out_spec.channelnames = ("Y",)
-        for name, value in sio._png_attributes(header, mapping, bit_depth).items():
+        for name, value in sio.png_attributes(header, mapping, bit_depth).items():
             out_spec.attribute(name, value)
         out = oiio.ImageOutput.create(str(tmp))
         if out is None or not out.open(str(tmp), out_spec):
