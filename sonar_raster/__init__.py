@@ -1,33 +1,75 @@
 """sonar_raster: side-looking sonar images from 3D scenes with headless OpenGL, and back.
 
-The data flow, top to bottom: a :class:`Scene` (triangles, reflectivity) and a :class:`Sonar`
-with a :class:`Trajectory` go into a renderer (:func:`render_raster` on OpenGL, or
-:func:`render_reference` in numpy), which returns a :class:`SonarImage`; :func:`apply_effects`
-adds the sensor's effects (:class:`Effects`: beams, losses, gain, speckle, quantisation), and
-:func:`write_image` writes it as EXR/PNG with a JSON sidecar. Heavy modules load on first use,
-so importing the package stays fast.
+The data flow, top to bottom, one subpackage per stage:
+
+- ``scenes``: :func:`load_scene` (a bundled scene by name, a ``.toml`` description or a model
+  file) gives a :class:`~sonar_raster.scenes.SceneSetup`: a :class:`Scene`, a :class:`Sonar`
+  and a :class:`Trajectory` (``meshio`` reads the model files);
+- ``rendering``: :func:`render` (``model="raster" | "reference" | "coherent"``) returns a raw
+  :class:`SonarImage`; only ``rendering.gl`` knows OpenGL;
+- ``effects``: :func:`apply_effects` adds the sensor's effects (:class:`Effects`);
+- ``io``: :func:`write_image` writes EXR/PNG with a JSON sidecar, :func:`write_xtf` and
+  :func:`read_xtf` sonar records, all-or-nothing;
+- ``inversion``: :func:`invert` recovers reflectivity, beam pattern and elevation from one side
+  of an image, :func:`write_products` writes them; :func:`track_bottom` and
+  :func:`invert_xtf` work on real recordings;
+- ``dataset``: :func:`generate_dataset` renders labelled training data;
+- ``cli``: the ``sonar-raster`` command.
+
+Heavy modules load on first use, so importing the package stays fast.
 """
 
 from __future__ import annotations
 
-from importlib import import_module
-from typing import Any
+from typing import TYPE_CHECKING
 
+from ._lazy import lazy_exports
 from .errors import SonarRasterError
 from .image import SonarImage
 from .scene import MeshPart, Scene, build_scene
 from .sonar import BeamPattern, Sonar
 from .trajectory import Trajectory
 
+if TYPE_CHECKING:
+    from .dataset import DatasetConfig, generate_dataset, load_dataset_config
+    from .effects import Effects, apply_effects
+    from .inversion import (
+        BeamProfile,
+        BottomTrack,
+        Inversion,
+        invert,
+        invert_xtf,
+        track_bottom,
+        write_products,
+    )
+    from .io import read_exr, read_xtf, write_image, write_xtf
+    from .rendering import (
+        HorizontalBeam,
+        Pulse,
+        RasterRenderer,
+        RasterSettings,
+        render,
+        render_coherent,
+        render_raster,
+        render_reference,
+        render_survey,
+    )
+    from .scenes import SceneSetup, list_bundled, load_scene, load_scene_file
+
 __all__ = [
     "BeamPattern",
+    "BeamProfile",
+    "BottomTrack",
+    "DatasetConfig",
     "Effects",
     "HorizontalBeam",
+    "Inversion",
     "MeshPart",
     "Pulse",
     "RasterRenderer",
     "RasterSettings",
     "Scene",
+    "SceneSetup",
     "Sonar",
     "SonarImage",
     "SonarRasterError",
@@ -35,40 +77,66 @@ __all__ = [
     "apply_effects",
     "build_scene",
     "generate_dataset",
+    "invert",
+    "invert_xtf",
+    "list_bundled",
+    "load_dataset_config",
+    "load_scene",
     "load_scene_file",
+    "read_exr",
+    "read_xtf",
+    "render",
     "render_coherent",
     "render_raster",
-    "read_xtf",
     "render_reference",
     "render_survey",
-    "to_raster_units",
     "track_bottom",
     "write_image",
+    "write_products",
     "write_xtf",
 ]
 
-_LAZY = {
-    "HorizontalBeam": "render.coherent",
-    "Pulse": "render.coherent",
-    "render_coherent": "render.coherent",
-    "to_raster_units": "render.coherent",
-    "RasterRenderer": "render.gl.raster",
-    "RasterSettings": "render.gl.raster",
-    "render_raster": "render.gl.raster",
-    "render_reference": "render.reference",
-    "render_survey": "render.survey",
-    "write_image": "io.images",
-    "Effects": "effects.chain",
-    "apply_effects": "effects.chain",
-    "load_scene_file": "scenes.description",
-    "generate_dataset": "dataset.generate",
-    "read_xtf": "io.xtf",
-    "write_xtf": "io.xtf",
-    "track_bottom": "invert.bottom",
+_EAGER = (
+    "BeamPattern",
+    "MeshPart",
+    "Scene",
+    "Sonar",
+    "SonarImage",
+    "SonarRasterError",
+    "Trajectory",
+    "build_scene",
+)
+_HOMES = {
+    "dataset": ("DatasetConfig", "generate_dataset", "load_dataset_config"),
+    "effects": ("Effects", "apply_effects"),
+    "inversion": (
+        "BeamProfile",
+        "BottomTrack",
+        "Inversion",
+        "invert",
+        "invert_xtf",
+        "track_bottom",
+        "write_products",
+    ),
+    "io": ("read_exr", "read_xtf", "write_image", "write_xtf"),
+    "rendering": (
+        "HorizontalBeam",
+        "Pulse",
+        "RasterRenderer",
+        "RasterSettings",
+        "render",
+        "render_coherent",
+        "render_raster",
+        "render_reference",
+        "render_survey",
+    ),
+    "scenes": ("SceneSetup", "list_bundled", "load_scene", "load_scene_file"),
 }
 
+__getattr__, _dir = lazy_exports(
+    __name__, {name: home for home, names in _HOMES.items() for name in names}
+)
 
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        return getattr(import_module(f".{_LAZY[name]}", __name__), name)
-    raise AttributeError(f"module 'sonar_raster' has no attribute {name!r}")
+
+def __dir__() -> list[str]:
+    return sorted(set(_dir()) | set(_EAGER))

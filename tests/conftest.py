@@ -14,7 +14,7 @@ SHARED_DATA = ROOT.parent / "shared" / "data"
 
 
 def _renderer(backend: str):
-    from sonar_raster.render.gl.raster import RasterRenderer
+    from sonar_raster.rendering.gl.raster import RasterRenderer
 
     return RasterRenderer(backend)
 

@@ -9,8 +9,8 @@ import pytest
 from conftest import box_from_bounds, rect_seabed
 
 from sonar_raster.errors import SonarRasterError
-from sonar_raster.render.analytic import flat_seabed_profile
-from sonar_raster.render.reference import render_reference
+from sonar_raster.rendering.analytic import flat_seabed_profile
+from sonar_raster.rendering.reference import render_reference
 from sonar_raster.scene import build_scene
 from sonar_raster.sonar import Sonar
 from sonar_raster.trajectory import Trajectory
@@ -119,7 +119,7 @@ def test_heading_far_off_the_course_is_refused():
 
 
 def test_coherent_model_refuses_crab():
-    from sonar_raster.render.coherent.model import render_coherent
+    from sonar_raster.rendering.coherent.model import render_coherent
 
     scene = build_scene([rect_seabed(-10.0, 10.0, -10.0, 10.0)])
     with pytest.raises(SonarRasterError, match="crab or pitch"):

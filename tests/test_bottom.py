@@ -10,7 +10,7 @@ from conftest import SHARED_DATA, box_from_bounds, plane
 
 from sonar_raster import render_raster
 from sonar_raster.errors import SonarRasterError
-from sonar_raster.invert.bottom import first_return, track_bottom, track_side
+from sonar_raster.inversion.bottom import first_return, track_bottom, track_side
 from sonar_raster.scene import MeshPart, build_scene
 from sonar_raster.sonar import BeamPattern, Sonar
 from sonar_raster.trajectory import Trajectory

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sonar_raster.render.reference import render_reference
+from sonar_raster.rendering.reference import render_reference
 from sonar_raster.scenes.bundled import DEFAULT_SCENE, bundled_scene, list_bundled
 from sonar_raster.scenes.description import load_scene_file
 

@@ -9,7 +9,7 @@ from conftest import box_from_bounds as box
 from conftest import rect_seabed as seabed
 
 from sonar_raster.errors import SonarRasterError
-from sonar_raster.render.coherent.model import (
+from sonar_raster.rendering.coherent.model import (
     HorizontalBeam,
     PointScatterers,
     Pulse,
@@ -17,7 +17,7 @@ from sonar_raster.render.coherent.model import (
     render_coherent,
     to_raster_units,
 )
-from sonar_raster.render.reference import render_reference
+from sonar_raster.rendering.reference import render_reference
 from sonar_raster.scene import MeshPart, build_scene
 from sonar_raster.sonar import BeamPattern, Sonar
 from sonar_raster.trajectory import Trajectory

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from sonar_raster.errors import SonarRasterError
-from sonar_raster.render.gl.context import create_context, requested_backends
+from sonar_raster.rendering.gl.context import create_context, requested_backends
 from sonar_raster.scenes.description import Overrides, load_scene_file
 
 
@@ -155,7 +155,7 @@ def test_unknown_backend_and_missing_libraries(monkeypatch):
     def fail(name):
         raise RuntimeError(f"{name} library not found")
 
-    monkeypatch.setattr("sonar_raster.render.gl.context._create", fail)
+    monkeypatch.setattr("sonar_raster.rendering.gl.context._create", fail)
     with pytest.raises(SonarRasterError) as info:
         create_context(None)
     message = str(info.value)

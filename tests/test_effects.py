@@ -14,7 +14,7 @@ from sonar_raster.effects.absorption import francois_garrison
 from sonar_raster.effects.chain import Effects, apply_effects, load_tvg_curve
 from sonar_raster.errors import SonarRasterError
 from sonar_raster.image import SonarImage
-from sonar_raster.render.analytic import flat_seabed_profile
+from sonar_raster.rendering.analytic import flat_seabed_profile
 from sonar_raster.scene import build_scene
 from sonar_raster.scenes.sediments import SEDIMENTS, material_reflectivity, sediment
 from sonar_raster.sonar import BeamPattern, Sonar

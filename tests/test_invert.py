@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from sonar_raster.errors import SonarRasterError
-from sonar_raster.invert.em import Problem, Steps, _search_direction
-from sonar_raster.invert.ground import first_return, ground_to_slant, slant_to_ground
-from sonar_raster.invert.model import (
+from sonar_raster.inversion.em import Problem, Steps, _search_direction
+from sonar_raster.inversion.ground import first_return, ground_to_slant, slant_to_ground
+from sonar_raster.inversion.model import (
     Geometry,
     energy,
     evaluate,
@@ -19,8 +19,8 @@ from sonar_raster.invert.model import (
     slope,
     slope_adjoint,
 )
-from sonar_raster.invert.priors import estimate_looks, slope_hessian, slope_roughness
-from sonar_raster.invert.solver import BeamProfile, invert
+from sonar_raster.inversion.priors import estimate_looks, slope_hessian, slope_roughness
+from sonar_raster.inversion.solver import BeamProfile, invert
 from sonar_raster.scene import build_scene
 from sonar_raster.scenes.seabed import from_grid, make_seabed
 from sonar_raster.sonar import BeamPattern, Sonar
@@ -454,7 +454,7 @@ def test_stability_at_grazing_and_near_nadir(altitude):
 def test_no_estimate_where_the_data_end():
     # The last cells' returns and their slope neighbours' fall partly beyond the image: they
     # get NaN (EDGE_BINS = 6 bins of slant range), the cells before them an estimate.
-    from sonar_raster.invert.solver import EDGE_BINS
+    from sonar_raster.inversion.solver import EDGE_BINS
 
     h, rb, bins = 5.0, 0.05, 300
     x = (np.arange(400) + 0.5) * rb
@@ -566,7 +566,7 @@ def test_cli_invert_bad_input_writes_nothing(argv, tmp_path, monkeypatch, capsys
 def test_png_input_is_read_as_linear_grey_levels(tmp_path):
     import OpenImageIO as oiio
 
-    from sonar_raster.invert.write import read_side
+    from sonar_raster.inversion.write import read_side
 
     levels = (np.arange(6 * 9).reshape(6, 9) * 4).astype(np.uint8)
     out = oiio.ImageOutput.create(str(tmp_path / "in.png"))

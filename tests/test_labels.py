@@ -116,7 +116,7 @@ def test_stationary_sonar_repeats_the_labels(gl):
 
 def test_no_label_work_when_labels_are_off():
     """Labels off: the label programs are never built, no label target or buffer exists."""
-    from sonar_raster.render.gl.raster import RasterRenderer
+    from sonar_raster.rendering.gl.raster import RasterRenderer
 
     scene = _box_scene()
     sonar = Sonar(max_range=30.0, range_bin=0.1)

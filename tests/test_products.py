@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from sonar_raster.errors import SonarRasterError
-from sonar_raster.invert.products import even_illumination, mean_incidence_cos, reproject
-from sonar_raster.invert.solver import invert
+from sonar_raster.inversion.products import even_illumination, mean_incidence_cos, reproject
+from sonar_raster.inversion.solver import invert
 from sonar_raster.meshio.export import export, seabed_mesh
-from sonar_raster.render.gl.preview import BACKGROUND, render_previews
+from sonar_raster.rendering.gl.preview import BACKGROUND, render_previews
 from sonar_raster.scene import build_scene
 from sonar_raster.scenes.seabed import make_seabed
 from sonar_raster.sonar import BeamPattern, Sonar
@@ -206,7 +206,7 @@ def test_cli_writes_every_product_atomically(flat_image, tmp_path):
 
 
 def test_cli_failure_in_a_late_product_leaves_nothing(flat_image, tmp_path, monkeypatch, capsys):
-    import sonar_raster.render.gl.preview as preview
+    import sonar_raster.rendering.gl.preview as preview
     from sonar_raster.cli.app import main
 
     def broken(*args, **kwargs):

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from conftest import box, plane
 
-from sonar_raster.render.analytic import flat_seabed_profile, shadow_length
-from sonar_raster.render.gl.raster import RasterSettings
+from sonar_raster.rendering.analytic import flat_seabed_profile, shadow_length
+from sonar_raster.rendering.gl.raster import RasterSettings
 from sonar_raster.scene import MeshPart, build_scene
 from sonar_raster.sonar import BeamPattern, Sonar
 from sonar_raster.trajectory import Trajectory
@@ -163,7 +163,7 @@ def test_along_track_slope_is_integrated_over_the_ping_width(gl):
     interval its (angle × along-track) patch covers, so a single row matches the slab
     integral of the numpy reference as closely as many rows do.
     """
-    from sonar_raster.render.reference import render_reference
+    from sonar_raster.rendering.reference import render_reference
 
     slope = math.radians(15.0)
     base = plane(120.0)
@@ -183,7 +183,7 @@ def test_along_track_slope_is_integrated_over_the_ping_width(gl):
 
 def test_reused_renderer_matches_a_fresh_one(gl):
     """Targets are reused between renders (depth-only clears): nothing stale leaks through."""
-    from sonar_raster.render.gl.raster import RasterRenderer
+    from sonar_raster.rendering.gl.raster import RasterRenderer
 
     busy = build_scene([plane(120.0), box((12.0, 1.0, 1.0), (1.0, 3.0, 2.0))])
     sparse = build_scene([plane(30.0, center=(0.0, 0.0))])

@@ -8,8 +8,8 @@ from conftest import box_from_bounds as box
 from conftest import rect_seabed as seabed
 
 from sonar_raster.errors import SonarRasterError
-from sonar_raster.render.analytic import flat_seabed_profile, shadow_length
-from sonar_raster.render.reference import render_reference
+from sonar_raster.rendering.analytic import flat_seabed_profile, shadow_length
+from sonar_raster.rendering.reference import render_reference
 from sonar_raster.scene import MeshPart, build_scene
 from sonar_raster.sonar import BeamPattern, Sonar
 from sonar_raster.trajectory import Trajectory

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 from conftest import box_from_bounds, rect_seabed
 
-from sonar_raster.render.analytic import flat_seabed_profile
-from sonar_raster.render.gl.raster import RasterSettings
-from sonar_raster.render.reference import render_reference
+from sonar_raster.rendering.analytic import flat_seabed_profile
+from sonar_raster.rendering.gl.raster import RasterSettings
+from sonar_raster.rendering.reference import render_reference
 from sonar_raster.scene import build_scene
 from sonar_raster.sonar import BeamPattern, Sonar
 from sonar_raster.trajectory import Trajectory
@@ -145,7 +145,7 @@ def test_inversion_of_huge_sparse_spikes_is_finite():
     Found by probing test_inversion_is_finite_and_monotone with amplitudes beyond float32
     (the property now draws 1e-38..1e38, which every float32 image file satisfies).
     """
-    from sonar_raster.invert.solver import invert
+    from sonar_raster.inversion.solver import invert
 
     rng = np.random.default_rng(1)
     image = np.zeros((11, 188))
@@ -159,7 +159,7 @@ def test_inversion_of_a_tiny_image_is_finite():
     """A speckled flat seabed at 1e-160 of its level inverts like the same image at 1."""
     import warnings
 
-    from sonar_raster.invert.solver import invert
+    from sonar_raster.inversion.solver import invert
 
     image = _speckled_flat_image(11, 188, 0.05, 3.0)
     with warnings.catch_warnings():
@@ -172,7 +172,7 @@ def test_inversion_of_a_tiny_image_is_finite():
 def test_inversion_is_scale_equivariant():
     """Scaling the image by 1e30 scales Φ (and the ground image, E by its square) and leaves
     R and Z as they were: the fit runs on a copy scaled by a power of two."""
-    from sonar_raster.invert.solver import invert
+    from sonar_raster.inversion.solver import invert
 
     image = _speckled_flat_image(16, 240, 0.05, 4.0)
     a = invert(image, 0.05, max_iter=10)

@@ -10,7 +10,7 @@ from conftest import box_from_bounds, plane
 
 from sonar_raster import render_raster
 from sonar_raster.errors import SonarRasterError
-from sonar_raster.invert.shadows import find_shadows, object_pings
+from sonar_raster.inversion.shadows import find_shadows, object_pings
 from sonar_raster.scene import build_scene
 from sonar_raster.sonar import BeamPattern, Sonar
 from sonar_raster.trajectory import Trajectory

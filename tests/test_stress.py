@@ -26,8 +26,8 @@ from hypothesis import strategies as st
 
 from sonar_raster.errors import SonarRasterError
 from sonar_raster.image import SonarImage
-from sonar_raster.render.analytic import flat_seabed_profile
-from sonar_raster.render.gl.raster import RasterSettings
+from sonar_raster.rendering.analytic import flat_seabed_profile
+from sonar_raster.rendering.gl.raster import RasterSettings
 from sonar_raster.scene import MeshPart, build_scene
 from sonar_raster.scenes.seabed import make_seabed
 from sonar_raster.sonar import BeamPattern, Sonar
@@ -310,7 +310,7 @@ def test_gl_labels_and_oversampling_are_finite(gl, survey, data):
 @stress(15)
 @given(survey=surveys(max_bins=96, max_pings=6, **ANY_SURVEY))
 def test_reference_images_are_finite(survey):
-    from sonar_raster.render.reference import render_reference
+    from sonar_raster.rendering.reference import render_reference
 
     with np.errstate(over="raise", invalid="raise", divide="raise"):
         image = render_reference(survey.scene, survey.sonar, survey.traj)
@@ -332,7 +332,7 @@ def test_coherent_images_are_finite(
     freq, max_range, altitude, heading, sides, kind, with_box, seed
 ):
     """The coherent model on a small patch (few scatterers at 10-30 kHz, λ/1 spacing)."""
-    from sonar_raster.render.coherent.model import render_coherent, to_raster_units
+    from sonar_raster.rendering.coherent.model import render_coherent, to_raster_units
 
     sonar = Sonar(
         frequency_hz=freq,
@@ -504,7 +504,7 @@ NADIR_CLEARANCE_BINS = 3.0
 @given(survey=surveys(max_bins=128, max_pings=4, alt_frac=0.8, beams=SMOOTH_BEAMS))
 def test_gl_agrees_with_the_reference(gl, survey):
     """The GL image and the numpy patch reference (an independent discretisation) agree."""
-    from sonar_raster.render.reference import render_reference
+    from sonar_raster.rendering.reference import render_reference
 
     tops = [float(p.vertices[:, 2].max()) for p in survey.parts if not p.is_seabed]
     clearance = float(survey.traj.positions[:, 2].min()) - max(tops, default=-np.inf)
@@ -707,7 +707,7 @@ def hostile_images(draw):
 @stress(40)
 @given(case=hostile_images(), levels=st.integers(1, 3), given_alt=st.booleans())
 def test_inversion_is_finite_and_monotone(case, levels, given_alt):
-    from sonar_raster.invert.solver import invert
+    from sonar_raster.inversion.solver import invert
 
     img, range_bin, alt = case
     try:

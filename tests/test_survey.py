@@ -11,8 +11,8 @@ from conftest import box_from_bounds, rect_seabed
 from sonar_raster.cli.app import main
 from sonar_raster.errors import SonarRasterError
 from sonar_raster.io.images import read_exr, read_pixels, write_image
-from sonar_raster.render.gl.raster import render_raster
-from sonar_raster.render.survey import render_survey
+from sonar_raster.rendering.gl.raster import render_raster
+from sonar_raster.rendering.survey import render_survey
 from sonar_raster.scene import build_scene
 from sonar_raster.sonar import Sonar
 from sonar_raster.trajectory import Trajectory
@@ -62,7 +62,7 @@ def test_a_failed_survey_leaves_nothing(tmp_path, setup, monkeypatch):
             raise SonarRasterError("disk full (simulated)")
         return original(self, block)
 
-    from sonar_raster.render import survey
+    from sonar_raster.rendering import survey
 
     original = survey.ExrStreamWriter.write
     monkeypatch.setattr(survey.ExrStreamWriter, "write", broken)

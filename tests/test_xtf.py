@@ -294,7 +294,7 @@ def test_cli_track_png(tmp_path):
 
 
 def test_ground_positions_analytic():
-    from sonar_raster.invert.xtf import ground_positions
+    from sonar_raster.inversion.xtf import ground_positions
 
     east, north = np.array([100.0, 100.0]), np.array([200.0, 200.0])
     heading = np.radians([90.0, 0.0])  # east, north
@@ -319,7 +319,7 @@ def test_geotiff_places_values_at_their_coordinates(tmp_path):
     its centre's coordinates."""
     import rasterio
 
-    from sonar_raster.invert.xtf import geotiff_jobs, grid, ground_positions
+    from sonar_raster.inversion.xtf import geotiff_jobs, grid, ground_positions
     from sonar_raster.io.commit import commit
 
     pings = 60
@@ -401,7 +401,7 @@ def _wreck_stands_above_seabed(directory: Path) -> None:
 
     import OpenImageIO as oiio
 
-    from sonar_raster.invert.shadows import find_shadows, object_pings
+    from sonar_raster.inversion.shadows import find_shadows, object_pings
 
     image, _ = read_xtf(SAMPLE, pings=slice(288, 312))
     doc = json.loads((directory / "inversion.json").read_text())

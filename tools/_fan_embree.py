@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sonar_raster.image import SonarImage
-from sonar_raster.render.gl.raster import RasterRenderer, RasterSettings
+from sonar_raster.rendering.gl.raster import RasterRenderer, RasterSettings
 from sonar_raster.scene import Scene
 from sonar_raster.sonar import Sonar
 from sonar_raster.trajectory import Trajectory

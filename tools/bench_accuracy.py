@@ -80,8 +80,8 @@ from bench_render import (  # noqa: E402
     write_csv,
 )
 
-from sonar_raster.render.coherent.model import Pulse, render_coherent, to_raster_units  # noqa: E402
-from sonar_raster.render.gl.raster import RasterRenderer, RasterSettings  # noqa: E402
+from sonar_raster.rendering.coherent.model import Pulse, render_coherent, to_raster_units  # noqa: E402
+from sonar_raster.rendering.gl.raster import RasterRenderer, RasterSettings  # noqa: E402
 from sonar_raster.scene import build_scene  # noqa: E402
 from sonar_raster.scenes.bundled import list_bundled  # noqa: E402
 from sonar_raster.scenes.seabed import make_seabed  # noqa: E402
@@ -434,7 +434,7 @@ def fine_contrast_row(case: Case, spacing: float, pings: int) -> Row:
     rows = slice(max(0, case.trajectory.n_pings // 2 - pings // 2), None)
     rows = slice(rows.start, min(case.trajectory.n_pings, rows.start + pings))
     traj = case.trajectory.subset(rows)
-    from sonar_raster.render.coherent.model import HorizontalBeam
+    from sonar_raster.rendering.coherent.model import HorizontalBeam
 
     seconds, image = timed(
         lambda: render_coherent(

@@ -1,4 +1,4 @@
-"""Bottom tracking: ``sonar_raster.invert.bottom.first_return`` against ``_ground.first_return``.
+"""Bottom tracking: ``sonar_raster.inversion.bottom.first_return`` against ``_ground.first_return``.
 
 A benchmark, not a test: renders a flat seabed (GL raster, both sides, 300 pings 0.1 m
 apart, 20 m range in 5 cm bins, Gaussian 50° beam tilted 20°) at several altitudes, adds
@@ -25,8 +25,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from conftest import plane  # noqa: E402
 
 from sonar_raster import render_raster  # noqa: E402
-from sonar_raster.invert.bottom import first_return, track_bottom  # noqa: E402
-from sonar_raster.invert.ground import first_return as old_first_return  # noqa: E402
+from sonar_raster.inversion.bottom import first_return, track_bottom  # noqa: E402
+from sonar_raster.inversion.ground import first_return as old_first_return  # noqa: E402
 from sonar_raster.scene import build_scene  # noqa: E402
 from sonar_raster.sonar import BeamPattern, Sonar  # noqa: E402
 from sonar_raster.trajectory import Trajectory  # noqa: E402

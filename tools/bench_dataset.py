@@ -63,7 +63,7 @@ def run_mode(config, mode: str, n: int, seed: int) -> dict:
 def plain_render(config, n: int, seed: int) -> dict:
     """Baseline: the same scenes rendered without labels and without the seabed-only pass."""
     from sonar_raster.dataset.scene import draw_sample
-    from sonar_raster.render.gl.raster import RasterRenderer
+    from sonar_raster.rendering.gl.raster import RasterRenderer
 
     times = {"labelled": 0.0, "plain": 0.0}
     with RasterRenderer() as renderer:

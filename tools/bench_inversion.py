@@ -42,8 +42,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sonar_raster.invert.solver import BeamProfile, Inversion, invert
-from sonar_raster.render.gl.raster import RasterRenderer
+from sonar_raster.inversion.solver import BeamProfile, Inversion, invert
+from sonar_raster.rendering.gl.raster import RasterRenderer
 from sonar_raster.scene import build_scene
 from sonar_raster.scenes.seabed import Heightfield, from_grid, make_seabed
 from sonar_raster.sonar import BeamPattern, Sonar
@@ -277,7 +277,7 @@ def main() -> None:
         "--subsamples",
         type=int,
         default=None,
-        help="set sonar_raster.invert.solver.SUBSAMPLES (points per cell's return) for every run",
+        help="set inversion.solver.SUBSAMPLES (points per cell's return) for every run",
     )
     ap.add_argument(
         "--looks",
@@ -286,9 +286,9 @@ def main() -> None:
     )
     args = ap.parse_args()
     if args.subsamples is not None:
-        import sonar_raster.invert.solver
+        import sonar_raster.inversion.solver
 
-        sonar_raster.invert.solver.SUBSAMPLES = args.subsamples
+        sonar_raster.inversion.solver.SUBSAMPLES = args.subsamples
     looks = None if args.looks == "none" else args.looks
     looks = looks if looks in (None, "auto") else float(looks)
     options: dict = {"flat_prior": args.flat_prior, "speckle": args.speckle, "looks": looks}

@@ -45,8 +45,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _fan_embree import EmbreeFan  # noqa: E402
 
-from sonar_raster.render.gl.raster import RasterRenderer, RasterSettings  # noqa: E402
-from sonar_raster.render.reference import render_reference  # noqa: E402
+from sonar_raster.rendering.gl.raster import RasterRenderer, RasterSettings  # noqa: E402
+from sonar_raster.rendering.reference import render_reference  # noqa: E402
 from sonar_raster.scene import Scene, build_scene  # noqa: E402
 from sonar_raster.scenes.bundled import bundled_scene, list_bundled  # noqa: E402
 from sonar_raster.scenes.description import load_scene_file  # noqa: E402

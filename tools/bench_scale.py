@@ -51,7 +51,7 @@ def seabed(triangles: int):
 
 def run_case(case: dict) -> dict:
     """Run one case in this process; return seconds, peak memory and the renderer's counters."""
-    from sonar_raster.render.gl.raster import RasterRenderer, RasterSettings
+    from sonar_raster.rendering.gl.raster import RasterRenderer, RasterSettings
     from sonar_raster.sonar import Sonar
     from sonar_raster.trajectory import Trajectory
 
@@ -65,7 +65,7 @@ def run_case(case: dict) -> dict:
     t0 = time.perf_counter()
     counters: dict = {}
     if case["path"] == "streamed":
-        from sonar_raster.render.survey import render_survey
+        from sonar_raster.rendering.survey import render_survey
 
         with tempfile.TemporaryDirectory() as tmp:
             _, counters = render_survey(
@@ -249,7 +249,7 @@ def lod_table(quick: bool) -> list[dict]:
     The error is the image's relative L1 against the full-detail render (pixel by pixel, and of
     the along-track mean profile), beside the height error the coarse grid reports.
     """
-    from sonar_raster.render.gl.raster import RasterRenderer
+    from sonar_raster.rendering.gl.raster import RasterRenderer
     from sonar_raster.scene import build_scene
     from sonar_raster.scenes.seabed import level_of_detail, rough
     from sonar_raster.sonar import Sonar

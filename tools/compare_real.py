@@ -152,7 +152,7 @@ def simulate(real: RealPass, altitudes: np.ndarray, args: argparse.Namespace, be
     """Render the flat seabed along the real altitudes, then apply the effects."""
     water_ratio = water_column_ratio(real)
     from sonar_raster import Effects, Sonar, Trajectory, apply_effects, build_scene
-    from sonar_raster.render.gl.raster import render_raster
+    from sonar_raster.rendering.gl.raster import render_raster
     from sonar_raster.scene import MeshPart
     from sonar_raster.scenes.sediments import material_reflectivity
     from sonar_raster.sonar import BeamPattern

@@ -73,7 +73,7 @@ def render_scene():
     import trimesh
 
     from sonar_raster import Sonar, Trajectory, build_scene
-    from sonar_raster.render.gl.raster import render_raster
+    from sonar_raster.rendering.gl.raster import render_raster
     from sonar_raster.scene import MeshPart
     from sonar_raster.scenes.sediments import material_reflectivity
     from sonar_raster.sonar import BeamPattern

@@ -20,7 +20,7 @@ Writes into DIR:
 
 Wreck height, two ways, on the object side (``--side``, starboard for the sample file):
 
-1. From the acoustic shadow (:mod:`sonar_raster.invert.shadows`): per ping, a shadow directly behind
+1. From the acoustic shadow (``inversion.shadows``): per ping, a shadow directly behind
    a highlight gives ``H = Ls h / (R + Ls)`` (slant ranges, h the tracked altitude). This
    holds in the side-scan fan, which a pitch p tilts from the vertical, so the vertical
    height is that times ``cos p``. The longest run of pings with a shadow is the wreck; its
@@ -47,8 +47,8 @@ import numpy as np
 
 from sonar_raster.cli.track import draw_waterfall, parse_pings
 from sonar_raster.errors import SonarRasterError
-from sonar_raster.invert.shadows import find_shadows, object_pings
-from sonar_raster.invert.xtf import georeference, geotiff_jobs, invert_xtf
+from sonar_raster.inversion.shadows import find_shadows, object_pings
+from sonar_raster.inversion.xtf import georeference, geotiff_jobs, invert_xtf
 from sonar_raster.io.commit import commit
 
 SEABED_BEYOND_M = 2.0
@@ -192,7 +192,7 @@ def main(argv: list[str] | None = None) -> int:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from sonar_raster.invert.write import write_products
+    from sonar_raster.inversion.write import write_products
 
     out = Path(args.output)
     out.mkdir(parents=True, exist_ok=True)

@@ -292,11 +292,11 @@ def _add_invert(sub) -> None:
 
 
 def _invert(args: argparse.Namespace) -> int:
-    from ..invert.solver import BeamProfile, invert
-    from ..invert.write import energy_summary, read_side, write_products
+    from ..inversion.solver import BeamProfile, invert
+    from ..inversion.write import energy_summary, read_side, write_products
 
     if Path(args.image).suffix.lower() == ".xtf":
-        from ..invert.xtf import invert_xtf_command
+        from ..inversion.xtf import invert_xtf_command
 
         return invert_xtf_command(args)
     image, side, attrs = read_side(Path(args.image), args.side)
@@ -371,7 +371,7 @@ def _render(args: argparse.Namespace) -> int:
     if _streamed(args, setup):
         return _render_survey(args, setup, outputs)
     if args.model == "coherent":
-        from ..render.coherent.model import render_coherent, to_raster_units
+        from ..rendering.coherent.model import render_coherent, to_raster_units
 
         options = dict(setup.coherent)
         if args.spacing is not None:
@@ -389,11 +389,11 @@ def _render(args: argparse.Namespace) -> int:
         if image.metadata["facet_area_m2"] > 0:  # written in the raster's units (m², no 1/r⁴)
             image = to_raster_units(image)
     elif args.renderer == "reference":
-        from ..render.reference import render_reference
+        from ..rendering.reference import render_reference
 
         image = render_reference(setup.scene, setup.sonar, setup.trajectory)
     else:
-        from ..render.gl.raster import RasterSettings, render_raster
+        from ..rendering.gl.raster import RasterSettings, render_raster
 
         settings = RasterSettings(
             oversample=args.oversample or RasterSettings.oversample,
@@ -457,8 +457,8 @@ def _streamed(args: argparse.Namespace, setup) -> bool:
 
 
 def _render_survey(args: argparse.Namespace, setup, outputs: list[Path]) -> int:
-    from ..render.gl.raster import RasterSettings
-    from ..render.survey import render_survey
+    from ..rendering.gl.raster import RasterSettings
+    from ..rendering.survey import render_survey
     from .effects_options import effects_from_args
 
     if effects_from_args(args, setup.effects) is not None:
@@ -509,7 +509,7 @@ def _doctor() -> int:
     import os
     from importlib import metadata
 
-    from ..render.gl.context import BACKENDS, ENV_VAR, probe
+    from ..rendering.gl.context import BACKENDS, ENV_VAR, probe
 
     print(f"{ENV_VAR}={os.environ.get(ENV_VAR, '(unset)')}")
     ok = False

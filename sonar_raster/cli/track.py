@@ -13,7 +13,7 @@ import numpy as np
 from ..errors import SonarRasterError
 
 if TYPE_CHECKING:  # bottom imports scipy: keep it out of `sonar-raster --help`
-    from ..invert.bottom import BottomTrack
+    from ..inversion.bottom import BottomTrack
 
 TRACK_SUFFIXES = (".png", ".csv")
 
@@ -60,7 +60,7 @@ def track_command(args: argparse.Namespace) -> int:
         if not out.parent.is_dir():
             raise SonarRasterError(f"cannot write {out}: directory {out.parent} does not exist")
     image, nav = read_xtf(args.file, parse_pings(args.pings))
-    from ..invert.bottom import track_bottom
+    from ..inversion.bottom import track_bottom
 
     track = track_bottom(image.sides, image.sonar.range_bin)
     if not args.quiet:

@@ -347,8 +347,8 @@ def _positive_int(table: dict, key: str, default: int, where: str) -> int:
 
 def _check_render(render: dict, where: str) -> None:
     """Fail now on a bad ``[render]`` table rather than in every worker."""
-    from ..render.gl.context import requested_backends
-    from ..render.gl.raster import RasterSettings
+    from ..rendering.gl.context import requested_backends
+    from ..rendering.gl.raster import RasterSettings
 
     unknown = set(render) - {"oversample", "along_samples", "backend"}
     if unknown:

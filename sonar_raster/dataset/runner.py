@@ -34,7 +34,7 @@ def renderer_options(config: DatasetConfig) -> tuple[str | None, dict[str, Any]]
 
 
 def _make_renderer(backend: str | None, settings: dict[str, Any]) -> Any:
-    from ..render.gl.raster import RasterRenderer, RasterSettings
+    from ..rendering.gl.raster import RasterRenderer, RasterSettings
 
     return RasterRenderer(backend, RasterSettings(**settings))
 

@@ -631,7 +631,7 @@ class XtfWriter:
     """Append blocks of pings to an open XTF file: the file header, then one packet per ping.
 
     Used by :func:`write_xtf` (one block) and by long surveys streamed block by block
-    (:func:`sonar_raster.render.survey.render_survey`). Ping numbers and times run on across blocks.
+    (:func:`~sonar_raster.render_survey`). Ping numbers and times run on across blocks.
     """
 
     def __init__(

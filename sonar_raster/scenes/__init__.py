@@ -1,8 +1,7 @@
 """Scenes: description files (TOML), bundled scenes and their data, seabeds, objects, sediments.
 
-``load_scene_file`` turns a description file, a bare model file or a bundled scene's path into a
-:class:`SceneSetup` (scene, sonar, trajectory, effects); ``bundled_scene`` finds a bundled one by
-name. Bundled files live in ``scenes/data/``.
+``load_scene`` turns a bundled scene's name, a description file or a bare model file into a
+:class:`SceneSetup` (scene, sonar, trajectory, effects). Bundled files live in ``scenes/data/``.
 """
 
 from __future__ import annotations
@@ -13,7 +12,7 @@ from .._lazy import lazy_exports
 
 if TYPE_CHECKING:
     from .bundled import bundled_scene, list_bundled
-    from .description import Overrides, SceneSetup, load_scene_file
+    from .description import Overrides, SceneSetup, load_scene, load_scene_file
     from .seabed import Heightfield, make_seabed
     from .sediments import Sediment, material_reflectivity, sediment
 
@@ -24,6 +23,7 @@ __all__ = [
     "Sediment",
     "bundled_scene",
     "list_bundled",
+    "load_scene",
     "load_scene_file",
     "make_seabed",
     "material_reflectivity",
@@ -37,6 +37,7 @@ __getattr__, __dir__ = lazy_exports(
         "list_bundled": "bundled",
         "Overrides": "description",
         "SceneSetup": "description",
+        "load_scene": "description",
         "load_scene_file": "description",
         "Heightfield": "seabed",
         "make_seabed": "seabed",

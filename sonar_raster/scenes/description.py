@@ -93,6 +93,25 @@ def load_scene_file(path: str | Path, overrides: Overrides | None = None) -> Sce
     )
 
 
+def load_scene(source: str | Path, overrides: Overrides | None = None) -> SceneSetup:
+    """Load a bundled scene by name (``"default"``, ``"barrel_on_sand"``, ...) or a file.
+
+    Parameters
+    ----------
+    source : str or Path
+        A bundled scene's name (see :func:`~sonar_raster.scenes.list_bundled`), or the path of
+        a ``.toml`` description or a model file (anything that exists or has an extension).
+    overrides : Overrides, optional
+        Values that replace the scene's sonar and trajectory settings.
+    """
+    path = Path(source)
+    if not (path.exists() or path.suffix):
+        from .bundled import bundled_scene
+
+        path = bundled_scene(str(source))
+    return load_scene_file(path, overrides)
+
+
 # -- tables ------------------------------------------------------------------------------------
 def _table(data: dict, key: str, where: str) -> dict:
     value = data.get(key, {})
@@ -179,7 +198,7 @@ def _pulse(table: dict, sonar: Sonar, where: str) -> Any:
     """[pulse]: kind (lfm | cw), bandwidth_hz (lfm), duration_s, window; None when absent."""
     if not table:
         return None
-    from ..render.coherent.model import Pulse
+    from ..rendering.coherent.model import Pulse
 
     number = (int, float)
     kind = _take(table, "kind", "lfm", str, where)
@@ -216,7 +235,7 @@ def _coherent(table: dict, where: str) -> dict:
             raise SonarRasterError(
                 f"{where}: horizontal_beam must be a table like {{ width_deg = 0.5 }}"
             )
-        from ..render.coherent.model import HorizontalBeam
+        from ..rendering.coherent.model import HorizontalBeam
 
         beam = dict(beam)
         width = math.radians(float(_take(beam, "width_deg", None, number, where)))

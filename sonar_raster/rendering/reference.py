@@ -11,7 +11,7 @@ that moves continuously). A patch facing ``q``, inside the range window and not 
 
 Work is bounded in memory: patches are generated row by row of the subdivision grid, rows
 outside the segment's slab or beyond the maximum range are skipped analytically, and the rest
-is processed in fixed-size vectorised chunks (see :mod:`sonar_raster.render.patches`).
+is processed in fixed-size vectorised chunks (see :mod:`sonar_raster.rendering.patches`).
 """
 
 from __future__ import annotations

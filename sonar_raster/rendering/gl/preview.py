@@ -1,6 +1,6 @@
 """Headless preview renders of the recovered seabed mesh from four viewpoints (seed Figs. 6–7).
 
-Rendered with moderngl through :func:`sonar_raster.render.gl.context.create_context` (EGL, else
+Rendered with moderngl through :func:`sonar_raster.rendering.gl.context.create_context` (EGL, else
 OSMesa), the package's one GL path. pyrender, which the design card names, was tried: its
 0.1.45 release pins PyOpenGL 3.1.0, whose OSMesa binding lacks ``OSMesaCreateContextAttribs``
 so its OSMesa platform fails to import, and it picks EGL or OSMesa for the whole process through
@@ -95,7 +95,7 @@ def render_previews(
     size : (int, int)
         Width and height in pixels.
     backend : {"egl", "osmesa"} or None
-        GL backend (see :func:`sonar_raster.render.gl.context.create_context`).
+        GL backend (see :func:`sonar_raster.rendering.gl.context.create_context`).
 
     Returns
     -------

@@ -1,5 +1,6 @@
 """Rendering: a scene, a sonar and a trajectory in, a raw intensity image out.
 
+:func:`render` is the one entry, ``model="raster" | "reference" | "coherent"``.
 Three models of the same integral: the GL raster (:func:`render_raster`, fast, in ``gl/``), the
 numpy patch reference (:func:`render_reference`, slow, the oracle of the raster) and the coherent
 model (:func:`render_coherent`, point scatterers and a matched filter, with speckle).
@@ -15,16 +16,19 @@ from .._lazy import lazy_exports
 if TYPE_CHECKING:
     from .analytic import flat_seabed_profile, shadow_length
     from .coherent import HorizontalBeam, Pulse, render_coherent, to_raster_units
+    from .entry import MODELS, render
     from .gl import RasterRenderer, RasterSettings, render_raster
     from .reference import render_reference
     from .survey import render_survey
 
 __all__ = [
+    "MODELS",
     "HorizontalBeam",
     "Pulse",
     "RasterRenderer",
     "RasterSettings",
     "flat_seabed_profile",
+    "render",
     "render_coherent",
     "render_raster",
     "render_reference",
@@ -36,6 +40,8 @@ __all__ = [
 __getattr__, __dir__ = lazy_exports(
     __name__,
     {
+        "MODELS": "entry",
+        "render": "entry",
         "flat_seabed_profile": "analytic",
         "shadow_length": "analytic",
         "HorizontalBeam": "coherent",

@@ -297,7 +297,7 @@ def track_bottom(
 def first_return(slant: np.ndarray, range_bin: float) -> np.ndarray:
     """Altitude per ping from the first bottom return, shape (pings,), metres.
 
-    The same inputs and output as :func:`sonar_raster.invert.ground.first_return`, through
+    The same inputs and output as :func:`sonar_raster.inversion.ground.first_return`, through
     :func:`track_side`; pings without a clear return take their neighbours' altitude.
     """
     return track_side(slant, range_bin).altitude

@@ -155,7 +155,7 @@ def write_products(
 def _mesh_jobs(inv, directory, side, jobs, mesh, previews, size, backend) -> dict:
     """Append the mesh and preview writers to ``jobs``; return their inversion.json entries."""
     from ..meshio.export import export, seabed_mesh
-    from ..render.gl.preview import AZIMUTHS, ELEVATION, exaggeration, render_previews
+    from ..rendering.gl.preview import AZIMUTHS, ELEVATION, exaggeration, render_previews
 
     texture = inv.even if inv.even is not None else inv.reflectivity
     dy = inv.ping_spacing if np.isfinite(inv.ping_spacing) else float(inv.x[1] - inv.x[0])
@@ -176,7 +176,7 @@ def _mesh_jobs(inv, directory, side, jobs, mesh, previews, size, backend) -> dic
                 (directory / f"preview_az{az:03.0f}.png", partial(_write_png, pixels=image))
             )
         doc["previews"] = {
-            "renderer": "moderngl (EGL, else OSMesa, via sonar_raster.render.gl.context)",
+            "renderer": "moderngl (EGL, else OSMesa, via sonar_raster.rendering.gl.context)",
             "azimuth_deg": list(AZIMUTHS),
             "elevation_deg": ELEVATION,
             "vertical_exaggeration": exaggeration(np.asarray(coloured.vertices)),

@@ -1,9 +1,9 @@
 """Inversion of XTF files and georeferenced products (GeoTIFF) from their navigation.
 
-Both sides are inverted separately (:func:`sonar_raster.invert.solver.invert`) with the altitude of
-:func:`sonar_raster.invert.bottom.track_bottom`, on intensity = sample² (XTF side-scan samples are
+Both sides are inverted separately (:func:`.solver.invert`) with the altitude of
+:func:`.bottom.track_bottom`, on intensity = sample² (XTF side-scan samples are
 envelope amplitudes) with the leading transmit-pulse bins set to 0; each side's products
-go to ``DIR/port`` and ``DIR/starboard`` (:func:`sonar_raster.invert.write.write_products`).
+go to ``DIR/port`` and ``DIR/starboard`` (:func:`sonar_raster.inversion.write.write_products`).
 With navigation, the maps of both sides are placed on the ground and gridded into one raster
 each:
 
@@ -60,7 +60,7 @@ class XtfInversion:
     image: SonarImage
     navigation: XtfNavigation
     track: BottomTrack
-    sides: dict  # side name -> sonar_raster.invert.solver.Inversion
+    sides: dict  # side name -> sonar_raster.inversion.solver.Inversion
     blanking: int
 
 
@@ -119,7 +119,7 @@ def invert_xtf(
     progress : bool
         Progress bars.
     **options
-        Passed to :func:`sonar_raster.invert.solver.invert` (``max_iter``, ``levels``, ``tol``,
+        Passed to :func:`.solver.invert` (``max_iter``, ``levels``, ``tol``,
         ``beam``).
 
     Returns

@@ -1,6 +1,6 @@
 """Closed forms the tests and benchmarks compare renderers with.
 
-Both follow the forward model of :mod:`sonar_raster.render.reference`: an infinitely thin fan beam,
+Both follow the forward model of :mod:`.reference`: an infinitely thin fan beam,
 Lambertian ``cos θ`` scattering, beam gain ``Φ(α − axis)`` with ``axis = tilt ± roll``.
 """
 

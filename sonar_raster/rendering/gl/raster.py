@@ -7,7 +7,7 @@ its ray bundle on that plane (across the column's angle and along the row's widt
 weight ``Φ R r dα dy`` (Lambert). The depth test keeps the nearest hit, so objects shadow what
 lies behind them. Pass 2 (``gl/range_accumulate.glsl``) shares each weight among the range
 bins its spread overlaps, with exact fixed-point integer atomics. This module and
-:mod:`sonar_raster.render.gl.context` are the only ones that know OpenGL.
+:mod:`sonar_raster.rendering.gl.context` are the only ones that know OpenGL.
 """
 
 from __future__ import annotations

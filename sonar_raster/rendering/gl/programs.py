@@ -12,7 +12,7 @@ STAGES = ("VERTEX_SHADER", "GEOMETRY_SHADER", "FRAGMENT_SHADER", "COMPUTE_SHADER
 @cache
 def shader_source(name: str) -> str:
     """Text of ``render/gl/<name>``; raises FileNotFoundError naming the file if it is missing."""
-    path = resources.files("sonar_raster.render.gl").joinpath(name)
+    path = resources.files("sonar_raster.rendering.gl").joinpath(name)
     if not path.is_file():
         raise FileNotFoundError(f"shader file {name!r} is missing from the sonar_raster package")
     return path.read_text(encoding="utf-8")

@@ -4,7 +4,7 @@ Triangle ``f`` is cut into ``n_f²`` equal sub-triangles (facets) by uniform bar
 subdivision, ``n_f = max(1, ceil(max(sqrt(A_f) / s, longest edge / (2 s))))`` for a spacing
 ``s``: about one facet per ``s²`` of area (facet area ``a² = A_f / n_f² <= s²``, close to
 ``s²`` on triangles much larger than ``s``), with no facet edge longer than ``2 s``. Facets are
-indexed on an ``n × n`` square grid as in :mod:`sonar_raster.render.patches` (cell ``(i, j)`` is
+indexed on an ``n × n`` square grid as in :mod:`sonar_raster.rendering.patches` (cell ``(i, j)`` is
 upright for ``i + j <= n − 1`` with centroid barycentric ``((i + 1/3)/n, (j + 1/3)/n)``, else
 inverted with centroid ``(1 − (i + 1/3)/n, 1 − (j + 1/3)/n)``); the scatterer sits at the
 facet centroid moved by an isotropic Gaussian jitter (rms ``σ`` per axis, truncated at 4σ).

@@ -10,8 +10,8 @@ cells, widened by one cell at each end (a caller that needs the exact test makes
 patch). Rows are generated a block of triangles at a time and the runs handed out in chunks of
 about a fixed number of patches, so memory stays bounded on any scene.
 
-Shared by the patch reference (:mod:`sonar_raster.render.reference`) and the coherent model's
-scatterer generation (:mod:`sonar_raster.render.coherent.scatter`).
+Shared by the patch reference (:mod:`sonar_raster.rendering.reference`) and the coherent model's
+scatterer generation (:mod:`sonar_raster.rendering.coherent.scatter`).
 """
 
 from __future__ import annotations

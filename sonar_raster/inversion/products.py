@@ -4,7 +4,7 @@ Reprojected image (seed Fig. 8a): ground cell (i, j) takes the slant-range image
 range of the *recovered* seabed, ``ρ = sqrt(x_j² + Z_ij²)``, linearly interpolated between
 bin centres, per metre of ground range with the flat-seabed Jacobian ``x / ρ``:
 ``G = I(ρ) / Δr · x / ρ``. Over a flat seabed this is the flat-seabed conversion of
-:func:`sonar_raster.invert.ground.slant_to_ground`, and for the renderer's images ``G = Φ R cos θ``
+:func:`.ground.slant_to_ground`, and for the renderer's images ``G = Φ R cos θ``
 in the units of the recovered Φ. Relief still shades it (slopes facing the sonar are bright).
 
 Evenly illuminated image (seed Eq. 22, Fig. 8c): the reprojected image divided by the recovered

@@ -232,7 +232,7 @@ def render_coherent(
     Parameters
     ----------
     scene, sonar, trajectory
-        As for :func:`sonar_raster.render.reference.render_reference`.
+        As for :func:`sonar_raster.rendering.reference.render_reference`.
     pulse : Pulse, optional
         Transmit pulse; default :meth:`Pulse.for_range_bin` (a Taylor-weighted chirp whose
         ``c / (2B)`` is one range bin).

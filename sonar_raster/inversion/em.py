@@ -48,7 +48,7 @@ class Problem:
         Weight of the beam-profile curvature term ``Σ (Δ²Φ)²`` of E.
     edge : float
         ε of the edge-preserving reflectivity roughness (0: quadratic); see
-        :func:`sonar_raster.invert.model.roughness`.
+        :func:`sonar_raster.inversion.model.roughness`.
     flat : float
         Weight of the flat-seabed prior ``Σ (G (Z − Z_ref))²`` of E (0: none), ``G`` a Gaussian
         low-pass along and across track (see :meth:`low_pass`).
@@ -61,7 +61,7 @@ class Problem:
         Weight of the relief prior ``Σ (Z − Z_ref)²`` of E (0: none).
     slopes : float
         Weight of the slope prior ``Σ (∂Z/∂x)² + (∂Z/∂y)²`` of E (0: none); see
-        :func:`sonar_raster.invert.priors.slope_roughness`.
+        :func:`sonar_raster.inversion.priors.slope_roughness`.
     """
 
     image: np.ndarray

@@ -2,18 +2,18 @@
 
 The slant-range image is resampled to ground range over a flat seabed at the altitude of the
 first bottom return (for the initial R and Φ and the shadow ties), then the Lambertian model
-(:mod:`sonar_raster.invert.model`, seed Eqs. 12–14 with K absorbed into Φ), which places each
+(:mod:`sonar_raster.inversion.model`, seed Eqs. 12–14 with K absorbed into Φ), which places each
 ground cell's return at its own slant range, is fitted to the slant-range image by least
-squares (Eq. 16) with EM iterations (:mod:`sonar_raster.invert.em`) on a three-level pyramid,
+squares (Eq. 16) with EM iterations (:mod:`sonar_raster.inversion.em`) on a three-level pyramid,
 Φ constrained to be equal at equal depression angle (Eq. 21) and reflectivity in shadows tied
-to the nearest lit cell (:mod:`sonar_raster.invert.priors`). Each finer level keeps the
+to the nearest lit cell (:mod:`sonar_raster.inversion.priors`). Each finer level keeps the
 lowest-energy of three starts (see :func:`_solve`).
 
 Z is the elevation relative to the transducer in metres, negative below it. The result also
 carries the image reprojected to ground range at the recovered Z and the evenly illuminated
-image of seed Eq. 22 (:mod:`sonar_raster.invert.products`); :mod:`sonar_raster.invert.write` writes
+image of seed Eq. 22 (:mod:`.products`); :mod:`.write` writes
 them with a textured mesh (:mod:`sonar_raster.meshio.export`) and preview renders
-(:mod:`sonar_raster.render.gl.preview`).
+(:mod:`sonar_raster.rendering.gl.preview`).
 """
 
 from __future__ import annotations
@@ -60,7 +60,7 @@ REFLECTIVITY_EDGE = 0.0
 #: tol 1e-4) the last six cells' Z swung by 8–28 cm.
 EDGE_BINS = 6
 #: Points each ground cell's return is spread over along its tangent plane (see
-#: :mod:`sonar_raster.invert.model`). 3 brings the model within 0.5 % of the exact density of a
+#: :mod:`sonar_raster.inversion.model`). 3 brings the model within 0.5 % of the exact density of a
 #: flat seabed (5.6 % at 1), but measured with ``tools/bench_inversion.py --subsamples 3`` it
 #: is mixed: ripples 1.20 × instead of 0.64 × (0.35 instead of 0.40 × with the true altitude and
 #: the flat prior), the 96-ping mound calibrated 0.20 × instead of 0.51 ×, patches 2.47 / 3.56 ×
@@ -148,10 +148,10 @@ class Inversion:
         E per iteration for each level, coarsest first (the start kept at that level).
     reprojected : ndarray or None
         The image in ground range at the recovered elevation, intensity per metre of ground
-        range (see :func:`sonar_raster.invert.products.reproject`).
+        range (see :func:`sonar_raster.inversion.products.reproject`).
     even : ndarray or None
         The evenly illuminated ground-range image of seed Eq. 22, ``reprojected / (Φ cos⟨θ⟩)``
-        (see :mod:`sonar_raster.invert.products`).
+        (see :mod:`sonar_raster.inversion.products`).
     ping_spacing : float
         Along-track distance between pings used for the along-track slopes, metres.
     runs : list of dict
@@ -327,7 +327,7 @@ def invert(
         seabed at the altitude) and of the slopes (``slope_std``, across and along track):
         the MAP estimate under Gaussian noise, relief and slopes. ``"auto"`` (default) estimates
         L from neighbouring pings (see
-        :func:`sonar_raster.invert.priors.estimate_looks`, at least 1; the renders of
+        :func:`sonar_raster.inversion.priors.estimate_looks`, at least 1; the renders of
         ``tools/bench_inversion.py`` give 55 to 5·10¹⁰ noise-free, and 1.0, 1.9–2.1, 6.7–8.3
         and 20–33 with 1, 2, 8 and 32 looks of speckle); None leaves the priors out. Without
         them, speckle turns into relief: the model image does not depend on the along-track

@@ -1,0 +1,90 @@
+"""One entry for every forward model: :func:`render` picks raster, reference or coherent."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
+
+from ..errors import SonarRasterError
+from ..image import SonarImage
+from ..scene import Scene
+from ..sonar import Sonar
+from ..trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from .coherent.pulse import Pulse
+    from .gl.raster import RasterSettings
+
+__all__ = ["MODELS", "render"]
+
+#: The forward models: GL raster (fast), numpy patch reference (its oracle), coherent (Eq. 10).
+MODELS = ("raster", "reference", "coherent")
+
+
+def render(
+    scene: Scene,
+    sonar: Sonar,
+    trajectory: Trajectory,
+    *,
+    model: str = "raster",
+    settings: RasterSettings | None = None,
+    backend: str | None = None,
+    pulse: Pulse | None = None,
+    coherent: Mapping[str, Any] | None = None,
+    raster_units: bool = True,
+    progress: bool = False,
+) -> SonarImage:
+    """Render raw side-scan intensity of ``scene`` seen by ``sonar`` along ``trajectory``.
+
+    Parameters
+    ----------
+    scene, sonar, trajectory
+        What to image, with what, from where (world metres, z up).
+    model : {"raster", "reference", "coherent"}
+        "raster": Lambertian intensity (seed Eq. 11) rasterised with OpenGL (headless EGL or
+        OSMesa); "reference": the same integral summed over small visible patches in numpy
+        (slow, exact up to its patch size); "coherent": point scatterers, pulse and matched
+        filter (seed Eq. 10), with speckle (slow).
+    settings : RasterSettings, optional
+        Sampling of the raster model (ignored by the others).
+    backend : {"egl", "osmesa"}, optional
+        Headless GL backend of the raster model; default ``$SONAR_RASTER_GL``, else EGL, then
+        OSMesa.
+    pulse : Pulse, optional
+        Transmit pulse of the coherent model (default: a chirp whose resolution is one bin).
+    coherent : mapping, optional
+        Further keyword arguments of
+        :func:`~sonar_raster.rendering.coherent.render_coherent` (``spacing_wavelengths``,
+        ``seed``, ``horizontal_beam``, ...).
+    raster_units : bool
+        Coherent model only: scale its image to the raster's units (m², no 1/r⁴ spreading) so
+        that the three models compare directly; False keeps the physical echo level.
+    progress : bool
+        Show a progress bar (raster and coherent).
+
+    Returns
+    -------
+    SonarImage
+        float32 intensity per side, shape (pings, bins): rows are pings in time order, columns
+        slant-range bins from the transducer outwards.
+    """
+    if model not in MODELS:
+        raise SonarRasterError(f"unknown model {model!r}; use one of {', '.join(MODELS)}")
+    if model == "reference":
+        from .reference import render_reference
+
+        return render_reference(scene, sonar, trajectory)
+    if model == "coherent":
+        from .coherent.model import render_coherent, to_raster_units
+
+        image = render_coherent(
+            scene, sonar, trajectory, pulse=pulse, progress=progress, **dict(coherent or {})
+        )
+        if raster_units and image.metadata["facet_area_m2"] > 0:
+            image = to_raster_units(image)
+        return image
+    from .gl.raster import render_raster
+
+    return render_raster(
+        scene, sonar, trajectory, backend=backend, settings=settings, progress=progress
+    )
