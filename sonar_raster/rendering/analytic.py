@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 
+from .._checks import positive
 from ..errors import SonarRasterError
 from ..sonar import SIDES, Sonar
 
@@ -61,7 +62,8 @@ def flat_seabed_profile(
     SonarRasterError
         If altitude or width is not positive, reflectivity is negative, or side is unknown.
     """
-    _check_positive(altitude=altitude, width=width)
+    positive("altitude (metres)", altitude)
+    positive("width (metres)", width)
     if not (math.isfinite(reflectivity) and reflectivity >= 0):
         raise SonarRasterError(f"reflectivity must be >= 0, got {reflectivity!r}")
     if side not in SIDES:
@@ -116,7 +118,7 @@ def shadow_length(height: float, ground_range: float, altitude: float) -> float:
     SonarRasterError
         If the object reaches the sonar's altitude or an argument is out of range.
     """
-    _check_positive(altitude=altitude)
+    positive("altitude (metres)", altitude)
     if not (math.isfinite(height) and 0 <= height < altitude):
         raise SonarRasterError(
             f"object height must be in [0, altitude={altitude}) metres, got {height!r}"
@@ -124,9 +126,3 @@ def shadow_length(height: float, ground_range: float, altitude: float) -> float:
     if not (math.isfinite(ground_range) and ground_range >= 0):
         raise SonarRasterError(f"ground range must be >= 0 metres, got {ground_range!r}")
     return height * ground_range / (altitude - height)
-
-
-def _check_positive(**values: float) -> None:
-    for name, value in values.items():
-        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-            raise SonarRasterError(f"{name} must be a positive number of metres, got {value!r}")

@@ -27,93 +27,16 @@ from ..errors import SonarRasterError
 from ..image import SonarImage
 from ..scene import Scene
 from ..sonar import Sonar
-from ..trajectory import Segment, Trajectory
+from ..trajectory import Trajectory
+from .fan import Frame, Surface, check_inputs, ray_caster, segment_frame, visible
 from .patches import Runs, overlaps, project, runs_in_box
 
 log = logging.getLogger(__name__)
 
-#: Relative slant-range tolerance of the visibility test (first hit at >= r (1 - tol) is visible).
-VISIBILITY_REL_TOL = 1e-4
-#: Absolute slant-range tolerance of the visibility test, metres.
-VISIBILITY_ABS_TOL = 1e-5
 #: Patches per vectorised chunk (bounds memory to a few hundred MB).
 _PATCH_CHUNK = 1 << 20
 #: Subdivision-grid rows per block of triangles.
 _ROW_CHUNK = 1 << 19
-
-
-@dataclass(frozen=True)
-class _Frame:
-    """One track segment in the scene's local coordinates.
-
-    Attributes
-    ----------
-    origin, along : ndarray, shape (3,)
-        First ping position (local metres) and the direction of travel.
-    fore, starboard, up : ndarray, shape (3,)
-        The fan's orthonormal axes (see :class:`~sonar_raster.trajectory.Segment`).
-    spacing, width : float
-        Ping spacing and per-ping along-track width, metres (spacing 0: stationary).
-    first, count : int
-        Trajectory index of the first ping and number of pings.
-    roll : ndarray, shape (count,)
-        Roll of each ping, radians, positive starboard down.
-    """
-
-    origin: np.ndarray
-    along: np.ndarray
-    starboard: np.ndarray
-    up: np.ndarray
-    spacing: float
-    width: float
-    first: int
-    count: int
-    roll: np.ndarray
-    patch_size: float
-    fore: np.ndarray
-    shear: np.ndarray
-
-    @property
-    def t_bounds(self) -> tuple[float, float]:
-        """Along-track interval [lo, hi) of surface the segment's pings see, metres."""
-        if self.spacing > 0:
-            return -0.5 * self.spacing, (self.count - 0.5) * self.spacing
-        return -0.5 * self.width, 0.5 * self.width
-
-    @property
-    def axes(self) -> np.ndarray:
-        """Map to (travel, starboard, up) fan coordinates, shape (3, 3) (``Segment.shear``).
-
-        Orthonormal, rows along, starboard, up, unless the vehicle crabs or pitches.
-        """
-        return self.shear
-
-    @property
-    def fan_axes(self) -> np.ndarray:
-        """Rows fore, starboard, up: the fan's orthonormal frame, shape (3, 3)."""
-        return np.stack([self.fore, self.starboard, self.up])
-
-
-@dataclass(frozen=True)
-class _Surface:
-    """Scene triangles in local coordinates, with what the patches need.
-
-    Attributes
-    ----------
-    tri : ndarray, shape (m, 3, 3)
-        Corners, local metres.
-    normal : ndarray, shape (m, 3)
-        Unit normals ``cross(v1 - v0, v2 - v0)`` normalised.
-    n_sub : ndarray, shape (m,), int64
-        Subdivisions per edge; a triangle gives ``n_sub²`` patches.
-    patch_weight : ndarray, shape (m,)
-        Reflectivity times patch area, m².
-    """
-
-    tri: np.ndarray
-    normal: np.ndarray
-    n_sub: np.ndarray
-    patch_weight: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -183,18 +106,18 @@ def render_reference(
     SonarRasterError
         If ``patch_size`` is not a positive number, or no ray caster is available.
     """
-    _check_inputs(scene, sonar, trajectory)
+    check_inputs(scene, sonar, trajectory)
     size = sonar.range_bin / 4.0 if patch_size is None else patch_size
     if not (isinstance(size, (int, float)) and math.isfinite(size) and size > 0):
         raise SonarRasterError(f"patch_size must be a positive number of metres, got {size!r}")
     start = time.perf_counter()
     local = scene.bounds.mean(axis=0)
     surface = _surface(scene, local, float(size))
-    caster = _ray_caster(scene.vertices - local, scene.faces)
+    caster = ray_caster(scene.vertices - local, scene.faces)
     acc = {side: np.zeros((trajectory.n_pings, sonar.n_bins)) for side in sonar.sides}
     stats = _Stats()
     for segment in trajectory.segments(sonar.range_bin / 4.0):
-        frame = _frame(segment, trajectory, local, size)
+        frame = segment_frame(segment, trajectory, local, size)
         _render_segment(surface, caster, sonar, frame, acc, stats)
     elapsed = time.perf_counter() - start
     log.info(
@@ -215,65 +138,17 @@ def render_reference(
     return SonarImage(sides=sides, sonar=sonar, metadata=metadata)
 
 
-def _check_inputs(scene: Scene, sonar: Sonar, trajectory: Trajectory) -> None:
-    for value, kind, name in (
-        (scene, Scene, "scene"),
-        (sonar, Sonar, "sonar"),
-        (trajectory, Trajectory, "trajectory"),
-    ):
-        if not isinstance(value, kind):
-            raise TypeError(f"{name} must be a {kind.__name__}, got {type(value).__name__}")
-
-
-def _surface(scene: Scene, local: np.ndarray, patch_size: float) -> _Surface:
+def _surface(scene: Scene, local: np.ndarray, patch_size: float) -> Surface:
     """Local-coordinate triangles, normals, subdivision counts and patch weights."""
     tri = scene.triangles() - local
     normal, area = scene.face_normals_areas()
     edges = np.linalg.norm(tri[:, [1, 2, 0]] - tri, axis=2)
     n_sub = np.maximum(1, np.ceil(edges.max(axis=1) / patch_size)).astype(np.int64)
     weight = scene.reflectivity * area / n_sub.astype(np.float64) ** 2
-    return _Surface(tri, normal, n_sub, weight)
+    return Surface(tri, normal, n_sub, weight)
 
 
-def _frame(
-    segment: Segment, trajectory: Trajectory, local: np.ndarray, patch_size: float
-) -> _Frame:
-    sl = slice(segment.first, segment.first + segment.count)
-    return _Frame(
-        origin=segment.origin - local,
-        along=segment.along,
-        starboard=segment.starboard,
-        up=segment.up,
-        spacing=float(segment.spacing),
-        width=float(segment.width),
-        first=segment.first,
-        count=segment.count,
-        roll=trajectory.roll[sl],
-        patch_size=patch_size,
-        fore=segment.fore,
-        shear=segment.shear,
-    )
-
-
-def _ray_caster(vertices: np.ndarray, faces: np.ndarray):
-    """Embree intersector when embreex imports, else trimesh's pure-numpy one."""
-    import trimesh
-
-    mesh = trimesh.Trimesh(vertices=vertices, faces=faces, process=False, validate=False)
-    try:
-        # trimesh.ray wraps a failed embreex import instead of raising: test it directly
-        import embreex  # noqa: F401
-    except ImportError:
-        from trimesh.ray import ray_triangle
-
-        log.info("embreex not available: using trimesh's slow ray_triangle intersector")
-        return ray_triangle.RayMeshIntersector(mesh)
-    from trimesh.ray import ray_pyembree
-
-    return ray_pyembree.RayMeshIntersector(mesh)
-
-
-def _bounds(sonar: Sonar, frame: _Frame) -> np.ndarray:
+def _bounds(sonar: Sonar, frame: Frame) -> np.ndarray:
     """Box in segment coordinates (along, starboard, up) that can contribute, shape (3, 2)."""
     reach = sonar.n_bins * sonar.range_bin
     x_lo = -reach if "port" in sonar.sides else 0.0
@@ -284,10 +159,10 @@ def _bounds(sonar: Sonar, frame: _Frame) -> np.ndarray:
 
 
 def _render_segment(
-    surface: _Surface,
+    surface: Surface,
     caster,
     sonar: Sonar,
-    frame: _Frame,
+    frame: Frame,
     acc: dict[str, np.ndarray],
     stats: _Stats,
 ) -> None:
@@ -323,10 +198,10 @@ def _make_patches(
 
 
 def _accumulate(
-    surface: _Surface,
+    surface: Surface,
     caster,
     sonar: Sonar,
-    frame: _Frame,
+    frame: Frame,
     patches: _Patches,
     acc: dict[str, np.ndarray],
     stats: _Stats,
@@ -352,7 +227,7 @@ def _accumulate(
         return
     origins = frame.origin + t[sel, None] * frame.along
     dirs = (x[sel, None] * frame.starboard + v[sel, None] * frame.up) / r[sel, None]
-    vis = _visible(caster, surface, origins, dirs, r[sel], patches.face[sel])
+    vis = visible(caster, surface, origins, dirs, r[sel], patches.face[sel])
     stats.rays += len(sel)
     stats.visible += int(vis.sum())
     keep = sel[vis]
@@ -432,49 +307,9 @@ def _spread(r: np.ndarray, bin_size: float, offset: float) -> tuple[np.ndarray, 
     return np.where(used, bins, -1), np.where(used, fractions, 0.0)
 
 
-def _visible(
-    caster,
-    surface: _Surface,
-    origins: np.ndarray,
-    dirs: np.ndarray,
-    r: np.ndarray,
-    parent: np.ndarray,
-) -> np.ndarray:
-    """Test visibility: the first hit from the track is the patch's own face or not nearer."""
-    try:
-        hit = np.asarray(caster.intersects_first(origins, dirs), dtype=np.int64)
-    except ImportError as exc:
-        raise SonarRasterError(
-            f"no ray caster available ({exc}); install embreex (or rtree for the slow fallback)"
-        ) from None
-    vis = (hit < 0) | (hit == parent)
-    other = np.flatnonzero(~vis)
-    if len(other):
-        dist = _hit_distance(surface, hit[other], origins[other], dirs[other])
-        vis[other] = dist >= r[other] * (1.0 - VISIBILITY_REL_TOL) - VISIBILITY_ABS_TOL
-    return vis
-
-
-def _hit_distance(
-    surface: _Surface, hit: np.ndarray, origins: np.ndarray, dirs: np.ndarray
-) -> np.ndarray:
-    """Distance along each ray to the plane of the face it hit, metres, in float64.
-
-    A ray lying in the face's plane (grazing) gets the distance to the nearest corner's
-    projection onto the ray, where it enters the face.
-    """
-    tri = surface.tri[hit]
-    normal = surface.normal[hit]
-    denom = np.einsum("ij,ij->i", normal, dirs)
-    grazing = np.abs(denom) < 1e-9
-    num = np.einsum("ij,ij->i", normal, tri[:, 0] - origins)
-    along = np.einsum("ikj,ij->ik", tri - origins[:, None, :], dirs).min(axis=1)
-    return np.where(grazing, along, num / np.where(grazing, 1.0, denom))
-
-
 def _deposit(
     sonar: Sonar,
-    frame: _Frame,
+    frame: Frame,
     acc: dict[str, np.ndarray],
     ping: np.ndarray,
     rbin: np.ndarray,

@@ -39,6 +39,7 @@ from typing import Any
 
 import numpy as np
 
+from ..._checks import non_negative, positive
 from ...errors import SonarRasterError
 from ...image import SonarImage
 from ...scene import Scene
@@ -277,16 +278,16 @@ def render_coherent(
     SonarRasterError
         On an invalid setting, or when no ray caster is available.
     """
-    from ..reference import _check_inputs, _frame, _ray_caster, _Surface
+    from ..fan import Surface, check_inputs, ray_caster, segment_frame
 
-    _check_inputs(scene, sonar, trajectory)
+    check_inputs(scene, sonar, trajectory)
     pulse = Pulse.for_range_bin(sonar.range_bin, sonar.sound_speed) if pulse is None else pulse
     beam_h = (
         HorizontalBeam.for_track(sonar, trajectory) if horizontal_beam is None else horizontal_beam
     )
     _check_settings(sonar, pulse, beam_h, method, scattering)
-    spacing = _positive("spacing_wavelengths", spacing_wavelengths) * sonar.wavelength
-    jitter = _non_negative("jitter_wavelengths", jitter_wavelengths) * sonar.wavelength
+    spacing = positive("spacing_wavelengths", spacing_wavelengths) * sonar.wavelength
+    jitter = non_negative("jitter_wavelengths", jitter_wavelengths) * sonar.wavelength
     if not (isinstance(chunk, (int, np.integer)) and chunk >= 1):
         raise SonarRasterError(f"chunk must be a positive integer, got {chunk!r}")
     start = time.perf_counter()
@@ -296,8 +297,8 @@ def render_coherent(
     sides = tuple(s for s in SIDES if s in sonar.sides)
     work = _Work(
         surface=surface,
-        caster=_ray_caster(scene.vertices - local, scene.faces),
-        ray_surface=_Surface(surface.tri, surface.normal, surface.n_sub, surface.facet_area),
+        caster=ray_caster(scene.vertices - local, scene.faces),
+        ray_surface=Surface(surface.tri, surface.normal, surface.n_sub, surface.facet_area),
         grid=grid,
         model=replace(
             _model(sonar, beam_h, scattering), area_ref=spacing**2 if jitter > 0 else 0.0
@@ -313,7 +314,7 @@ def render_coherent(
     block = max(1, _BLOCK_BYTES // grid.nbytes(len(sides)))
     blocks = []
     for segment in trajectory.segments(sonar.range_bin / 4.0):
-        frame = _frame(segment, trajectory, local, spacing)
+        frame = segment_frame(segment, trajectory, local, spacing)
         if not np.allclose(frame.axes, frame.fan_axes, atol=1e-9):
             raise SonarRasterError(
                 "the coherent model does not model crab or pitch yet (heading off the course, "
@@ -446,18 +447,6 @@ def _check_settings(
         )
 
 
-def _positive(name: str, value: float) -> float:
-    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-        raise SonarRasterError(f"{name} must be a positive number, got {value!r}")
-    return float(value)
-
-
-def _non_negative(name: str, value: float) -> float:
-    if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-        raise SonarRasterError(f"{name} must be a number >= 0, got {value!r}")
-    return float(value)
-
-
 def _grid(sonar: Sonar, pulse: Pulse, samples_per_bin: int | None) -> EchoGrid:
     if samples_per_bin is not None and not (
         isinstance(samples_per_bin, (int, np.integer)) and 1 <= samples_per_bin <= 1024
@@ -514,13 +503,13 @@ def _cull(
 
 def _visible_only(sc: Scatterers, caster, ray_surface, frame, stats: _Stats) -> Scatterers:
     """One ray per scatterer from the track point abeam of it to its facet centroid."""
-    from ..reference import _visible
+    from ..fan import visible
 
     t, x, v = sc.nominal.T
     r = np.hypot(x, v)
     origins = frame.origin + t[:, None] * frame.along
     dirs = (x[:, None] * frame.starboard + v[:, None] * frame.up) / r[:, None]
-    vis = _visible(caster, ray_surface, origins, dirs, r, sc.face)
+    vis = visible(caster, ray_surface, origins, dirs, r, sc.face)
     stats.rays += len(vis)
     stats.visible += int(vis.sum())
     out = sc.take(np.flatnonzero(vis))
