@@ -1,7 +1,7 @@
 """Headless preview renders of the recovered seabed mesh from four viewpoints (seed Figs. 6–7).
 
-Rendered with moderngl through :func:`sonar_raster.rendering.gl.context.create_context` (EGL, else
-OSMesa), the package's one GL path. pyrender, which the design card names, was tried: its
+Drawn by :meth:`~sonar_raster.rendering.gl.raster.RasterRenderer.draw_views`, on the context of
+the renderer that owns every GL object (EGL, else OSMesa): the package's one GL path. pyrender, which the design card names, was tried: its
 0.1.45 release pins PyOpenGL 3.1.0, whose OSMesa binding lacks ``OSMesaCreateContextAttribs``
 so its OSMesa platform fails to import, and it picks EGL or OSMesa for the whole process through
 the ``PYOPENGL_PLATFORM`` variable at import time rather than per context.
@@ -84,7 +84,10 @@ def view_matrices(
 
 
 def render_previews(
-    mesh: Any, size: tuple[int, int] = (640, 480), backend: str | None = None
+    mesh: Any,
+    size: tuple[int, int] = (640, 480),
+    backend: str | None = None,
+    renderer: Any = None,
 ) -> list[np.ndarray]:
     """Four preview images of a mesh made by :func:`sonar_raster.meshio.export.seabed_mesh`.
 
@@ -95,16 +98,15 @@ def render_previews(
     size : (int, int)
         Width and height in pixels.
     backend : {"egl", "osmesa"} or None
-        GL backend (see :func:`sonar_raster.rendering.gl.context.create_context`).
+        GL backend of the renderer made for the previews when ``renderer`` is None.
+    renderer : RasterRenderer, optional
+        Draw on this renderer's context (it owns every GL object) instead of a new one.
 
     Returns
     -------
     list of ndarray, each shape (height, width, 3), uint8
         Top row first, one per azimuth of :data:`AZIMUTHS`.
     """
-    from .context import create_context, release_context
-    from .programs import specialise
-
     vertices = np.asarray(mesh.vertices, np.float64)
     centred = vertices - 0.5 * (vertices.min(axis=0) + vertices.max(axis=0))
     centred[:, 2] *= exaggeration(vertices)
@@ -112,32 +114,13 @@ def render_previews(
     grey = np.asarray(mesh.visual.vertex_colors, np.float64)[:, 0] / 255.0
     data = np.concatenate([centred, normals, grey[:, None]], axis=1).astype("f4")
     index = np.asarray(mesh.faces, dtype="i4")
-    width, height = size
-    ctx, _ = create_context(backend)
-    try:
-        with ctx:
-            prog = ctx.program(
-                vertex_shader=specialise("preview.glsl", "VERTEX_SHADER", {}),
-                fragment_shader=specialise("preview.glsl", "FRAGMENT_SHADER", {}),
-            )
-            vbo, ibo = ctx.buffer(data.tobytes()), ctx.buffer(index.tobytes())
-            vao = ctx.vertex_array(prog, [(vbo, "3f 3f 1f", "in_pos", "in_normal", "in_grey")], ibo)
-            fbo = ctx.simple_framebuffer((width, height), components=4)
-            fbo.use()
-            ctx.enable(ctx.DEPTH_TEST)
-            images = []
-            for mvp, light in view_matrices(centred, size):
-                fbo.clear(*BACKGROUND, 1.0, depth=1.0)
-                prog["mvp"].write(mvp.T.astype("f4").tobytes())
-                prog["light_dir"].value = tuple(float(v) for v in light)
-                vao.render()
-                raw = np.frombuffer(fbo.read(components=3), np.uint8)
-                images.append(raw.reshape(height, width, 3)[::-1].copy())
-            for obj in (vao, fbo, vbo, ibo, prog):
-                obj.release()
-    finally:
-        release_context(ctx)
-    return images
+    views = view_matrices(centred, size)
+    if renderer is not None:
+        return renderer.draw_views(data, index, views, size, BACKGROUND)
+    from .raster import RasterRenderer
+
+    with RasterRenderer(backend) as own:
+        return own.draw_views(data, index, views, size, BACKGROUND)
 
 
 def _normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:

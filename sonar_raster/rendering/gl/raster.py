@@ -166,6 +166,65 @@ class RasterRenderer:
                 )
         return self._programs[key]
 
+    # -- previews ---------------------------------------------------------------------------
+    def draw_views(
+        self,
+        vertices: np.ndarray,
+        faces: np.ndarray,
+        views: list[tuple[np.ndarray, np.ndarray]],
+        size: tuple[int, int],
+        background: tuple[float, float, float],
+    ) -> list[np.ndarray]:
+        """Draw a shaded, grey-coloured mesh once per view (``preview.glsl``) on this context.
+
+        Parameters
+        ----------
+        vertices : ndarray, shape (n, 7), float32
+            Position (3), unit normal (3) and grey level in [0, 1] (1) per vertex.
+        faces : ndarray, shape (m, 3), int32
+            Vertex indices.
+        views : list of (ndarray (4, 4), ndarray (3,))
+            Model-view-projection matrix and unit light direction of each view.
+        size : (int, int)
+            Width and height in pixels.
+        background : (float, float, float)
+            RGB of the background, in [0, 1].
+
+        Returns
+        -------
+        list of ndarray, each shape (height, width, 3), uint8
+            Top row first, one per view.
+        """
+        if "preview" not in self._programs:
+            self._programs["preview"] = self.ctx.program(
+                vertex_shader=specialise("preview.glsl", "VERTEX_SHADER", {}),
+                fragment_shader=specialise("preview.glsl", "FRAGMENT_SHADER", {}),
+            )
+        prog = self._programs["preview"]
+        width, height = size
+        images = []
+        with self.ctx:
+            vbo = self.ctx.buffer(np.ascontiguousarray(vertices, dtype="f4").tobytes())
+            ibo = self.ctx.buffer(np.ascontiguousarray(faces, dtype="i4").tobytes())
+            layout = [(vbo, "3f 3f 1f", "in_pos", "in_normal", "in_grey")]
+            vao = self.ctx.vertex_array(prog, layout, ibo)
+            fbo = self.ctx.simple_framebuffer((width, height), components=4)
+            try:
+                fbo.use()
+                self.ctx.enable(self.ctx.DEPTH_TEST)
+                for mvp, light in views:
+                    fbo.clear(*background, 1.0, depth=1.0)
+                    prog["mvp"].write(mvp.T.astype("f4").tobytes())
+                    prog["light_dir"].value = tuple(float(v) for v in light)
+                    vao.render()
+                    raw = np.frombuffer(fbo.read(components=3), np.uint8)
+                    images.append(raw.reshape(height, width, 3)[::-1].copy())
+            finally:
+                self.ctx.disable(self.ctx.DEPTH_TEST)
+                for obj in (vao, fbo, vbo, ibo):
+                    obj.release()
+        return images
+
     # -- geometry ---------------------------------------------------------------------------
     def _release_geometry(self) -> None:
         for obj in self._geometry.values():
