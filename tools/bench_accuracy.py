@@ -57,16 +57,13 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
+from _common import parser, pyplot, save_figure
 from bench_render import (  # noqa: E402
     Accuracy,
     Case,
@@ -547,11 +544,7 @@ def _standing(d: Row, rows: list[Row]) -> str:
 
 def plot(path: Path, rows: list[Row]) -> None:
     """Log-log error against seconds: L1/conv, L1/ref8 (raster) and prof (both models)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(19, 6))
     labels = list(dict.fromkeys(r.case.label for r in rows))
     marker = {"nearest": "x", "linear": "+", "footprint": "o"}
@@ -596,8 +589,7 @@ def plot(path: Path, rows: list[Row]) -> None:
     axes[2].legend(fontsize=7)
     fig.suptitle("time against error; lines: Pareto fronts per scene", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path, dpi=120)
 
 
 # -- main -------------------------------------------------------------------------------------
@@ -615,8 +607,7 @@ def run_scene(name: str, args) -> list[Row]:
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     bundled = [n for n, _ in list_bundled()]
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--out", type=Path, default=Path("bench_out"), help="output folder")
+    ap = parser(__doc__, out=Path("bench_out"))
     ap.add_argument(
         "--quick",
         action="store_true",

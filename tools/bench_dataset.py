@@ -20,16 +20,13 @@ to show what labelling costs.
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+from _common import DATASET_CONFIG, parser
 
 from sonar_raster.dataset.generate import STAGES, generate_dataset, load_dataset_config  # noqa: E402
 
@@ -83,11 +80,11 @@ def plain_render(config, n: int, seed: int) -> dict:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = parser(__doc__)
     ap.add_argument("-n", type=int, default=8, help="samples per mode")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--modes", default="1,2,dask")
-    ap.add_argument("--config", default=str(ROOT / "sonar_raster/scenes/data/dataset_default.toml"))
+    ap.add_argument("--config", default=str(DATASET_CONFIG))
     args = ap.parse_args()
     config = load_dataset_config(args.config)
     print(

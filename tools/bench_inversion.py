@@ -34,13 +34,13 @@ to ``OUT/inversion_time_vs_error.png`` and a small copy to ``docs/inversion_time
 
 from __future__ import annotations
 
-import argparse
 import math
 import time
 import zlib
 from pathlib import Path
 
 import numpy as np
+from _common import DOCS, ROOT, parser, pyplot
 
 from sonar_raster.inversion.solver import BeamProfile, Inversion, invert
 from sonar_raster.rendering.gl.raster import RasterRenderer
@@ -61,7 +61,6 @@ TRACK = Trajectory.straight((0.0, -1.6, ALT), 0.0, SPACING, PINGS)
 #: The mound again under a track three times longer (9.6 m; the mound spans about 4.5 m).
 LONG_TRACK = Trajectory.straight((0.0, -4.8, ALT), 0.0, SPACING, 3 * PINGS)
 COMMON = {"size": (30.0, 8.0), "center": (12.0, 0.0), "resolution": 0.05}
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def _grid(fn, half_length: float = 4.0) -> Heightfield:
@@ -212,11 +211,7 @@ def sweep(
 
 
 def plot(rows, points, path: Path, small: Path | None) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(9.0, 3.4))
     markers = ("o", "s", "^", "D")
     for k, series in enumerate(dict.fromkeys(p[0] for p in points)):
@@ -249,7 +244,7 @@ def plot(rows, points, path: Path, small: Path | None) -> None:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = parser(__doc__)
     ap.add_argument("--max-iter", type=int, default=100, help="iterations per level and start")
     ap.add_argument("--seabeds", default=",".join(SEABEDS), help="comma-separated subset")
     ap.add_argument(
@@ -299,7 +294,7 @@ def main() -> None:
         tols = [float(t) for t in args.tols.split(",") if t]
         points = sweep(renderer, [int(n) for n in args.sweep.split(",") if n], tols)
     if points and any(r[0] != "flat" for r in rows):
-        small = None if args.no_docs else ROOT / "docs" / "inversion_time_vs_error.png"
+        small = None if args.no_docs else DOCS / "inversion_time_vs_error.png"
         plot(rows, points, Path(args.out) / "inversion_time_vs_error.png", small)
 
 

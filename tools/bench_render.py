@@ -33,16 +33,13 @@ import argparse
 import csv
 import math
 import os
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
+from _common import parser, pyplot
 from _fan_embree import EmbreeFan  # noqa: E402
 
 from sonar_raster.rendering.gl.raster import RasterRenderer, RasterSettings  # noqa: E402
@@ -500,11 +497,7 @@ def write_csv(path: Path, dicts: list[dict]) -> None:
 
 def plot(path: Path, rows: list[Row], points: list[SweepPoint], sweep_name: str) -> None:
     """Time against error, log-log: the main table's rows (left), the settings sweep (right)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     fig, (left, right) = plt.subplots(1, 2, figsize=(13, 5.5))
     markers = {"gl": ("o", "C0"), "embree": ("s", "C1"), "reference": ("^", "C2")}
     for row in rows:
@@ -545,8 +538,7 @@ def _groups(points: list[SweepPoint]) -> dict:
 # -- main -------------------------------------------------------------------------------------
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     bundled = [n for n, _ in list_bundled()]
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--out", type=Path, default=Path("bench_out"), help="output folder")
+    ap = parser(__doc__, out=Path("bench_out"))
     ap.add_argument(
         "--quick",
         action="store_true",

@@ -31,6 +31,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _common import pyplot
 
 WIDTH, CELL = 120.0, 0.5  # seabed width and grid cell, metres: 480 triangles per 0.5 m row
 SPACING, ALTITUDE, RANGE = 0.2, 10.0, 50.0
@@ -207,13 +208,8 @@ def report(results: list[dict]) -> None:
 
 
 def plot(results: list[dict], path: Path) -> None:
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        print("matplotlib not installed: no plot")
+    plt = pyplot(required=False)
+    if plt is None:
         return
     fig, axes = plt.subplots(2, 3, figsize=(13, 7))
     for col, sweep in enumerate(("triangles", "pings", "bins")):

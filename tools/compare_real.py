@@ -33,10 +33,10 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
+from _common import REAL_XTF, parser
 from scipy import ndimage, stats
 
-ROOT = Path(__file__).resolve().parents[1]
-DEFAULT_XTF = ROOT.parent / "shared" / "data" / "xtf" / "scotsman-iver2.xtf"
+DEFAULT_XTF = REAL_XTF
 SKIP_PINGS = 8  # the first pings have no navigation and a settling altitude
 PATCH = 16
 WRECK_ROWS = (-40, 240)  # rows around the annotated hit ping holding the wreck and its shadow
@@ -301,21 +301,21 @@ def statistics(image: np.ndarray, mask: np.ndarray):
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--xtf", type=Path, default=DEFAULT_XTF)
-    parser.add_argument("--along-beam-deg", type=float, default=None, help="default: from data")
-    parser.add_argument(
+    ap = parser(__doc__)
+    ap.add_argument("--xtf", type=Path, default=DEFAULT_XTF)
+    ap.add_argument("--along-beam-deg", type=float, default=None, help="default: from data")
+    ap.add_argument(
         "--range-resolution",
         type=float,
         default=None,
         metavar="M",
         help="speckle range cell (default: from the data)",
     )
-    parser.add_argument("--beam-deg", type=float, default=None)
-    parser.add_argument("--tilt-deg", type=float, default=None)
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--png", type=Path, default=None, help="write real | simulated here")
-    args = parser.parse_args(argv)
+    ap.add_argument("--beam-deg", type=float, default=None)
+    ap.add_argument("--tilt-deg", type=float, default=None)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--png", type=Path, default=None, help="write real | simulated here")
+    args = ap.parse_args(argv)
     if not args.xtf.is_file():
         print(f"no XTF file at {args.xtf}", file=sys.stderr)
         return 2

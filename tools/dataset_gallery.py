@@ -9,16 +9,12 @@ folder, or reads an existing dataset folder, and draws each display image with i
 
 from __future__ import annotations
 
-import argparse
 import json
-import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
-
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+from _common import DATASET_CONFIG, DOCS, parser, pyplot
 
 
 def _read(path: Path) -> np.ndarray:
@@ -32,11 +28,9 @@ def _read(path: Path) -> np.ndarray:
 
 
 def draw(dataset: Path, n: int, out: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     from matplotlib.patches import Rectangle
+
+    plt = pyplot()
 
     coco = json.loads((dataset / "coco.json").read_text())
     names = {c["id"]: c["name"] for c in coco["categories"]}
@@ -79,12 +73,12 @@ def draw(dataset: Path, n: int, out: Path) -> None:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = parser(__doc__)
     ap.add_argument("--dataset", type=Path, help="an existing dataset folder")
-    ap.add_argument("--config", default=str(ROOT / "sonar_raster/scenes/data/dataset_default.toml"))
+    ap.add_argument("--config", default=str(DATASET_CONFIG))
     ap.add_argument("-n", type=int, default=4)
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("-o", "--output", type=Path, default=ROOT / "docs" / "dataset_samples.png")
+    ap.add_argument("-o", "--output", type=Path, default=DOCS / "dataset_samples.png")
     args = ap.parse_args()
     if args.dataset is not None:
         draw(args.dataset, args.n, args.output)

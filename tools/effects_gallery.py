@@ -10,13 +10,11 @@ Usage: ``python tools/effects_gallery.py [--out docs/effects]``.
 
 from __future__ import annotations
 
-import argparse
 import math
 from pathlib import Path
 
 import numpy as np
-
-ROOT = Path(__file__).resolve().parents[1]
+from _common import DOCS, ROOT, parser, pyplot
 
 
 def gallery(seabed_db: float, alpha: float) -> dict[str, tuple[dict, str]]:
@@ -113,14 +111,11 @@ def save(path: Path, data: np.ndarray) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    import matplotlib
-
-    matplotlib.use("Agg")
+    pyplot()
     from sonar_raster.effects.chain import Effects, apply_effects
 
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--out", type=Path, default=ROOT / "docs" / "effects")
-    args = parser.parse_args(argv)
+    ap = parser(__doc__, out=DOCS / "effects")
+    args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     raw, traj = render_scene()
     star = raw.sides["starboard"]

@@ -36,7 +36,6 @@ Wreck height, two ways, on the object side (``--side``, starboard for the sample
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import sys
@@ -44,6 +43,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _common import parser
 
 from sonar_raster.cli.track import draw_waterfall, parse_pings
 from sonar_raster.errors import SonarRasterError
@@ -178,15 +178,15 @@ def _shadow_figure(path: Path, shadow: dict, wreck: np.ndarray, dr: float, side:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("xtf")
-    parser.add_argument("-o", "--output", required=True)
-    parser.add_argument("--pings", help="ping range A:B (default: all)")
-    parser.add_argument("--max-iter", type=int, default=40)
-    parser.add_argument("--levels", type=int, default=3)
-    parser.add_argument("--side", default="starboard", choices=("port", "starboard"),
+    ap = parser(__doc__)
+    ap.add_argument("xtf")
+    ap.add_argument("-o", "--output", required=True)
+    ap.add_argument("--pings", help="ping range A:B (default: all)")
+    ap.add_argument("--max-iter", type=int, default=40)
+    ap.add_argument("--levels", type=int, default=3)
+    ap.add_argument("--side", default="starboard", choices=("port", "starboard"),
                         help="the side with the object")  # fmt: skip
-    args = parser.parse_args(argv)
+    args = ap.parse_args(argv)
     import matplotlib
 
     matplotlib.use("Agg")
