@@ -123,8 +123,9 @@ def test_no_label_work_when_labels_are_off():
     traj = Trajectory.straight((0.0, -2.0, 8.0), 0.0, 0.2, 10)
     with RasterRenderer("egl") as r:
         r.render(scene, sonar, traj)
-        assert all(key.endswith(":0") for key in r._programs)
-        assert "labels" not in r._targets
-        assert not any(key.startswith("labels") for key in r._geometry)
+        live = r.live_objects()
+        assert any(name.startswith("program") for name in live)
+        assert not any("labels" in name for name in live), live
         r.render(scene, sonar, traj, labels=True)
-        assert any(key.endswith(":1") for key in r._programs) and "labels" in r._targets
+        live = r.live_objects()
+        assert "program samples labels" in live and "target labels" in live, live

@@ -1,10 +1,11 @@
 """Headless preview renders of the recovered seabed mesh from four viewpoints (seed Figs. 6–7).
 
-Drawn by :meth:`~sonar_raster.rendering.gl.raster.RasterRenderer.draw_views`, on the context of
-the renderer that owns every GL object (EGL, else OSMesa): the package's one GL path. pyrender, which the design card names, was tried: its
-0.1.45 release pins PyOpenGL 3.1.0, whose OSMesa binding lacks ``OSMesaCreateContextAttribs``
-so its OSMesa platform fails to import, and it picks EGL or OSMesa for the whole process through
-the ``PYOPENGL_PLATFORM`` variable at import time rather than per context.
+Drawn by :meth:`~sonar_raster.rendering.gl.raster.RasterRenderer.draw_views`, on the context of the
+renderer that owns every GL object (EGL, else OSMesa): the package's one GL path. pyrender, which
+the design card names, was tried: its 0.1.45 release pins PyOpenGL 3.1.0, whose OSMesa binding
+lacks ``OSMesaCreateContextAttribs`` so its OSMesa platform fails to import, and it picks EGL or
+OSMesa for the whole process through the ``PYOPENGL_PLATFORM`` variable at import time rather than
+per context.
 
 Views: perspective (40° vertical field of view) from azimuths 45°, 135°, 225° and 315° around
 the mesh centre (0° = looking along +Y, the track), 35° above the horizontal, at the distance that

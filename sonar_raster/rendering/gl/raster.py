@@ -148,6 +148,25 @@ class RasterRenderer:
             "gl_version": self.ctx.info["GL_VERSION"],
         }
 
+    def live_objects(self) -> list[str]:
+        """Names of the GL objects this renderer holds now, for diagnostics and tests.
+
+        Programs read ``"program <kind>"``, render targets ``"target <name>"`` and scene
+        buffers ``"geometry <name>"``; anything that exists only for the object-id label pass
+        has ``labels`` in its name.
+        """
+        names = [
+            f"program {key.split(':')[0]}" + (" labels" if key.endswith(":1") else "")
+            for key in self._programs
+        ]
+        names += [f"target {key}" for key in self._targets]
+        names += [
+            f"geometry {key.replace(':1', ' labels').replace(':0', '')}"
+            for key, obj in self._geometry.items()
+            if hasattr(obj, "release")
+        ]
+        return sorted(names)
+
     # -- programs ---------------------------------------------------------------------------
     def _program(self, kind: str, labels: bool = False) -> Any:
         key = f"{kind}:{self.settings.split}:{int(labels)}"
