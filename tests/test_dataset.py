@@ -539,6 +539,32 @@ def test_effects_change_the_image_but_not_the_labels(reference, tmp_path):
             assert a[f"{kind}/{i:06d}.png"] == b[f"{kind}/{i:06d}.png"]
 
 
+@pytest.mark.parametrize(
+    ("table", "message"),
+    [
+        ("bogus = 1", r"noisy\.toml \[effects\]: unknown key\(s\) bogus"),
+        ('spreading = "yes"', "'spreading' must be true or false"),
+        ('speckle = "gauss"', "unknown speckle 'gauss'"),
+        ('tvg = "curve"\ntvg_curve = "missing.csv"', "cannot read TVG curve"),
+    ],
+)
+def test_a_bad_effects_table_fails_before_any_output(tmp_path, table, message):
+    config = _config(tmp_path, SMALL + f"\n[effects]\n{table}\n", "noisy.toml")
+    out = tmp_path / "out"
+    with pytest.raises(SonarRasterError, match=message):
+        generate_dataset(config, out, count=1)
+    assert not out.exists()
+
+
+def test_an_effects_curve_file_is_read_beside_the_config(tmp_path):
+    from sonar_raster.dataset.sample import effects_of
+
+    (tmp_path / "tvg.csv").write_text("0,0\n20,30\n")
+    text = SMALL + '\n[effects]\ntvg = "curve"\ntvg_curve = "tvg.csv"\n'
+    config = _config(tmp_path, text, "curve.toml")
+    assert effects_of(config).tvg_curve == ((0.0, 0.0), (20.0, 30.0))
+
+
 # -- the object library and the bundled config ---------------------------------------------------
 @pytest.mark.parametrize(
     ("kind", "params", "volume"),

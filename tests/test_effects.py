@@ -530,3 +530,74 @@ def test_cli_options_merge_over_the_scene_effects():
     assert effects_from_args(parse("--no-effects"), scene) is None
     fx = effects_from_args(parse("--tvg-log", "20", "--quantise-bits", "12"), None)
     assert fx.tvg == "log" and fx.tvg_log_coefficient == 20.0 and fx.bits == 12
+
+
+# -- one [effects] parser: scene files, dataset configs and the command line ------------------
+def test_from_table_reads_what_a_scene_file_gave(tmp_path):
+    (tmp_path / "tvg.csv").write_text("range_m,gain_db\n0,0\n20,40\n")
+    table = {"along_beam_deg": 1.5, "speckle": "k", "k_shape": 2.0, "tvg": "curve"}
+    fx = Effects.from_table({**table, "tvg_curve": "tvg.csv"}, base=tmp_path, where="s.toml")
+    assert fx == Effects(**table, tvg_curve=((0.0, 0.0), (20.0, 40.0)))
+    inline = Effects.from_table({**table, "tvg_curve": [[0, 0], [20.0, 40]]})
+    assert inline == fx
+
+
+def test_from_table_reads_what_a_dataset_config_gave():
+    tables = [
+        {"speckle": "exponential"},
+        {"spreading": True, "absorption": True, "tvg": "log", "tvg_log_coefficient": 40},
+        {"sas_resolution_m": 0.1, "noise_db": -60, "gain_db": 3, "saturation": 1, "bits": 12},
+        {},
+    ]
+    for table in tables:
+        fx = Effects.from_table(table)
+        assert fx == Effects(**table)
+        assert fx.changed() == table  # values as given: metadata does not change
+
+
+def test_from_table_replaces_the_defaults_as_the_command_line_does(tmp_path, monkeypatch):
+    scene = Effects(along_beam_deg=1.0, speckle="exponential", gain_db=2.0)
+    modes = {"along_beam_deg": None, "array_length_m": None}
+    fx = Effects.from_table({"sas_resolution_m": 0.2, **modes}, defaults=scene)
+    assert fx == Effects(sas_resolution_m=0.2, speckle="exponential", gain_db=2.0)
+    assert Effects.from_table({}, defaults=scene) == scene
+    monkeypatch.chdir(tmp_path)  # a curve named on the command line is relative to the cwd
+    (tmp_path / "c.csv").write_text("1,0\n9,12\n")
+    fx = Effects.from_table({"tvg": "curve", "tvg_curve": "c.csv"}, defaults=scene)
+    assert fx.tvg_curve == ((1.0, 0.0), (9.0, 12.0)) and fx.gain_db == 2.0
+
+
+@pytest.mark.parametrize(
+    ("table", "needle"),
+    [
+        ({"bogus": 1, "speckle": "k"}, r"^s\.toml \[effects\]: unknown key\(s\) bogus$"),
+        ({"spreading": "yes"}, r"^s\.toml \[effects\]: 'spreading' must be true or false"),
+        ({"absorption": 1}, "'absorption' must be true or false"),
+        ({"bits": 10}, "'bits' must be 8, 12 or 16, got 10"),
+        ({"bits": 8.0}, "'bits' must be 8, 12 or 16, got 8.0"),
+        ({"tvg": "curve", "tvg_curve": [[1, 2], [3]]}, "'tvg_curve' must be a CSV file name"),
+        ({"tvg": "curve", "tvg_curve": [["1", "2"], ["3", "4"]]}, "'tvg_curve' must be"),
+        ({"tvg": "curve", "tvg_curve": 5}, "'tvg_curve' must be"),
+        ({"tvg": "curve", "tvg_curve": "missing.csv"}, "cannot read TVG curve .*missing.csv"),
+        ({"tvg": "curve", "tvg_curve": [[0, 1]]}, ">= 2 rows"),
+        ({"tvg_curve": [[0, 1], [5, 2]]}, 'tvg is not "curve"'),
+        ({"gain_db": "3"}, "gain_db must be a number, got '3'"),
+        ({"along_beam_deg": -1.0}, "along_beam_deg must be > 0"),
+        ({"nadir_gap_deg": math.nan}, "nadir_gap_deg must be finite"),
+        ({"nadir_gap_deg": 95}, "nadir_gap_deg must be in"),
+        ({"speckle": "gauss"}, "unknown speckle 'gauss'"),
+        ({"along_beam_deg": 1.0, "sas_resolution_m": 0.1}, "only one"),
+        ({"absorption_db_m": -0.1}, "absorption_db_m"),
+        ({"depth_m": math.inf}, "depth_m must be finite"),
+    ],
+)
+def test_from_table_rejects_bad_values_with_one_clear_message(tmp_path, table, needle):
+    with pytest.raises(SonarRasterError, match=needle) as info:
+        Effects.from_table(table, base=tmp_path, where="s.toml [effects]")
+    message = str(info.value)
+    assert "\n" not in message and "__init__" not in message
+
+
+def test_ragged_curve_given_directly_is_a_clear_error():
+    with pytest.raises(SonarRasterError, match="TVG curve"):
+        Effects(tvg="curve", tvg_curve=((0.0, 1.0), (2.0,)))  # type: ignore[arg-type]

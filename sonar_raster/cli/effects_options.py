@@ -4,12 +4,27 @@ from __future__ import annotations
 
 import argparse
 import math
-from dataclasses import replace
 from typing import Any
 
-from ..errors import SonarRasterError
-
 _ALONG_MODES = ("along_beam_deg", "array_length_m", "sas_resolution_m")
+#: Effects field -> the render option (its ``dest``) that sets it as it is; None: not given.
+_FIELDS = {
+    "along_beam_deg": "along_beam_deg",
+    "array_length_m": "array_length",
+    "sas_resolution_m": "sas_resolution",
+    "nadir_gap_deg": "nadir_gap_deg",
+    "water_column_db": "water_column_db",
+    "speckle": "speckle",
+    "k_shape": "k_shape",
+    "range_resolution_m": "range_resolution",
+    "spreading": "spreading",
+    "absorption": "absorption",
+    "noise_db": "noise",
+    "tvg_log_coefficient": "tvg_log",
+    "gain_db": "gain_db",
+    "saturation": "saturation",
+    "bits": "quantise_bits",  # not "bits": that is render's PNG bit depth
+}
 
 
 def _number(text: str) -> float:
@@ -54,29 +69,15 @@ def add_effect_options(parser: argparse.ArgumentParser) -> None:
 def effects_from_args(args: argparse.Namespace, scene_effects: Any) -> Any:
     """The Effects to apply: the scene's (unless --no-effects) with the options given on top.
 
-    Returns None when nothing is enabled, so the caller skips the effects step entirely.
+    The options become an ``[effects]`` table of the fields they set, read by
+    :meth:`~sonar_raster.effects.chain.Effects.from_table` over the scene's effects. Returns
+    None when nothing is enabled, so the caller skips the effects step entirely.
     """
-    from ..effects.chain import Effects, load_tvg_curve
+    from ..effects.chain import Effects
 
     base = Effects() if args.no_effects or scene_effects is None else scene_effects
-    simple = {
-        "along_beam_deg": args.along_beam_deg,
-        "array_length_m": args.array_length,
-        "sas_resolution_m": args.sas_resolution,
-        "nadir_gap_deg": args.nadir_gap_deg,
-        "water_column_db": args.water_column_db,
-        "speckle": args.speckle,
-        "k_shape": args.k_shape,
-        "range_resolution_m": args.range_resolution,
-        "spreading": args.spreading,
-        "absorption": args.absorption,
-        "noise_db": args.noise,
-        "tvg_log_coefficient": args.tvg_log,
-        "gain_db": args.gain_db,
-        "saturation": args.saturation,
-        "bits": args.quantise_bits,
-    }
-    changes: dict[str, Any] = {k: v for k, v in simple.items() if v is not None}
+    given = {field: getattr(args, dest) for field, dest in _FIELDS.items()}
+    changes: dict[str, Any] = {k: v for k, v in given.items() if v is not None}
     if any(k in changes for k in _ALONG_MODES):  # the command line picks the along-track mode
         for key in _ALONG_MODES:
             changes.setdefault(key, None)
@@ -87,10 +88,7 @@ def effects_from_args(args: argparse.Namespace, scene_effects: Any) -> Any:
     if args.tvg is not None:
         if args.tvg in ("off", "log"):
             changes.update(tvg=args.tvg, tvg_curve=())
-        else:
-            changes.update(tvg="curve", tvg_curve=load_tvg_curve(args.tvg))
-    try:
-        effects = replace(base, **changes) if changes else base
-    except TypeError as exc:  # pragma: no cover - argparse types prevent this
-        raise SonarRasterError(f"effects: {exc}") from None
+        else:  # a CSV file, relative to the working folder
+            changes.update(tvg="curve", tvg_curve=args.tvg)
+    effects = Effects.from_table(changes, where="command line", defaults=base)
     return effects if effects.stages else None

@@ -1,12 +1,11 @@
-"""The XTF parts of the command line: ``sonar-raster track`` and ``invert FILE.xtf``."""
+"""``sonar-raster track``: the altitude per ping of an XTF file, as a summary, plot or table."""
 
 from __future__ import annotations
 
 import argparse
-import math
 from functools import partial
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -34,7 +33,7 @@ def parse_pings(text: str | None) -> slice | None:
     return slice(start, stop)
 
 
-def add_track_parser(sub) -> None:
+def add_parser(sub: Any) -> None:
     """Add the ``track`` subcommand to an argparse subparsers object."""
     track = sub.add_parser(
         "track",
@@ -49,8 +48,9 @@ def add_track_parser(sub) -> None:
     track.add_argument("-q", "--quiet", action="store_true", help="no summary")
 
 
-def track_command(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> int:
     """Run ``sonar-raster track``."""
+    from ..inversion.track_io import summary_lines
     from ..io.xtf import read_xtf
 
     out = Path(args.output) if args.output else None
@@ -73,30 +73,9 @@ def track_command(args: argparse.Namespace) -> int:
     return 0
 
 
-def summary_lines(track: BottomTrack, recorded: np.ndarray, range_bin: float) -> list[str]:
-    """Printable summary of a track, compared with the file's own altitude where it has one."""
-    n = len(track.altitude)
-    a = track.altitude
-    lines = [
-        f"{n} pings, {int(track.valid.sum())} with a clear bottom return "
-        f"({100.0 * track.valid.mean():.1f} %); range bin {range_bin * 100:.2f} cm",
-        f"tracked altitude: min {a.min():.2f} m, median {np.median(a):.2f} m, max {a.max():.2f} m",
-    ]
-    ok = np.isfinite(recorded)
-    if ok.any():
-        d = a[ok] - recorded[ok]
-        lines.append(
-            f"file altitude (SensorPrimaryAltitude) on {int(ok.sum())} pings: tracked - file "
-            f"median {np.median(d):+.2f} m, 5-95 % {np.percentile(d, 5):+.2f} to "
-            f"{np.percentile(d, 95):+.2f} m"
-        )
-    else:
-        lines.append("the file records no altitude (0 on every ping)")
-    return lines
-
-
 def write_track(out: Path, track: BottomTrack, recorded: np.ndarray, image) -> Path:
     """Write the track as .csv, or as .png when matplotlib is installed (else .csv beside it)."""
+    from ..inversion.track_io import write_track_csv
     from ..io.commit import commit
 
     if out.suffix.lower() == ".png":
@@ -107,24 +86,10 @@ def write_track(out: Path, track: BottomTrack, recorded: np.ndarray, image) -> P
             print(f"matplotlib is not installed: writing {csv} instead of {out}")
             out = csv
     if out.suffix.lower() == ".csv":
-        commit([(out, partial(_write_csv, track=track, recorded=recorded))])
+        commit([(out, partial(write_track_csv, track=track, recorded=recorded))])
     else:
         commit([(out, partial(_plot_track, track=track, recorded=recorded, image=image))])
     return out
-
-
-def _write_csv(tmp: Path, track: BottomTrack, recorded: np.ndarray) -> None:
-    with open(tmp, "x", encoding="utf-8") as fh:
-        fh.write("ping,altitude_m,valid,raw_m,contrast_db,file_altitude_m\n")
-        for i in range(len(track.altitude)):
-            fh.write(
-                f"{i},{track.altitude[i]:.4f},{int(track.valid[i])},{_num(track.raw[i])},"
-                f"{_num(track.contrast_db[i])},{_num(recorded[i])}\n"
-            )
-
-
-def _num(value: float) -> str:
-    return f"{value:.4f}" if math.isfinite(value) else ""
 
 
 def _plot_track(tmp: Path, track: BottomTrack, recorded: np.ndarray, image) -> None:

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from .._checks import integer
 from ..errors import SonarRasterError
 from ..scenes import seabed as _seabed
 from ..scenes.objects import PRIMITIVES
@@ -339,10 +340,8 @@ def _object_spec(table: dict, k: int, where: str) -> ObjectSpec:
 
 
 def _positive_int(table: dict, key: str, default: int, where: str) -> int:
-    value = table.pop(key, default)
-    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-        raise SonarRasterError(f"{where}: '{key}' must be a positive integer, got {value!r}")
-    return value
+    """Pop ``key`` from ``table``: a whole number >= 1."""
+    return integer(f"{where}: '{key}'", table.pop(key, default), minimum=1)
 
 
 def _check_render(render: dict, where: str) -> None:

@@ -269,9 +269,9 @@ def _json_bytes(doc: Any) -> bytes:
 def _check_effects(config: DatasetConfig) -> None:
     if not config.effects:
         return
-    from .sample import effects_from_table
+    from .sample import effects_of
 
-    effects_from_table(config.effects)  # a bad key fails here, before any output
+    effects_of(config)  # a bad key fails here, before any output
 
 
 def _results(
@@ -407,41 +407,3 @@ def _progress(total: int, show: bool) -> Any:
         dynamic_ncols=True,
         file=sys.stderr,
     )
-
-
-def _config_path(name: str) -> Path:
-    """A config file, or a bundled config by name (``dataset_default``)."""
-    path = Path(name)
-    if path.exists() or path.suffix:
-        return path
-    from ..scenes.bundled import bundled_dataset_config
-
-    bundled = bundled_dataset_config(name)
-    if bundled is not None:
-        return bundled
-    raise SonarRasterError(f"no dataset config {name!r}; give a .toml file or dataset_default")
-
-
-def run_cli(args: Any) -> int:
-    """The ``sonar-raster dataset`` command (arguments from :mod:`sonar_raster.cli.app`)."""
-    config = load_dataset_config(_config_path(args.config))
-    try:
-        summary = generate_dataset(
-            config,
-            args.output,
-            count=args.count,
-            seed=args.seed,
-            workers=args.workers,
-            scheduler=args.scheduler,
-            progress=not args.quiet,
-        )
-    except KeyboardInterrupt:
-        print(
-            f"sonar-raster: interrupted; finished samples are kept in {args.output}; "
-            "run the same command again to resume",
-            file=sys.stderr,
-        )
-        return 130
-    if not args.quiet:
-        print(summary.text())
-    return 0

@@ -100,21 +100,16 @@ def _effects(image: SonarImage, config: DatasetConfig, drawn: SampleScene) -> So
         return image
     from ..effects.chain import apply_effects
 
-    effects = effects_from_table(config.effects)
+    effects = effects_of(config)
     return apply_effects(image, effects, seed=drawn.effects_seed, trajectory=drawn.trajectory)
 
 
-def effects_from_table(table: dict) -> Any:
+def effects_of(config: DatasetConfig) -> Any:
     """:class:`sonar_raster.effects.chain.Effects` from a config's ``[effects]`` table."""
     from ..effects.chain import Effects
 
-    options = dict(table)
-    if "tvg_curve" in options:
-        options["tvg_curve"] = tuple(tuple(p) for p in options["tvg_curve"])
-    try:
-        return Effects(**options)
-    except TypeError as exc:
-        raise SonarRasterError(f"[effects]: {exc}") from None
+    where = f"{Path(config.source).name} [effects]"
+    return Effects.from_table(config.effects or {}, base=config.base, where=where)
 
 
 def _tmpdir() -> Path:

@@ -34,12 +34,14 @@ costs nothing, and with every stage off the input arrays come back untouched:
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from dataclasses import dataclass, field, fields
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from .._checks import non_negative, number, positive
 from ..errors import SonarRasterError
 from ..image import SonarImage
 from ..sonar import SIDES
@@ -63,8 +65,33 @@ TVG_KINDS = ("off", "log", "curve")
 QUANTISE_BITS = (8, 12, 16)
 
 
-def _finite(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+#: Fields that are None (off) or a number > 0.
+_POSITIVE_OR_NONE = (
+    "along_beam_deg",
+    "array_length_m",
+    "sas_resolution_m",
+    "ping_spacing_m",
+    "saturation",
+    "range_resolution_m",
+)
+#: Fields that are None or a finite number (their ranges are checked apart).
+_NUMBER_OR_NONE = ("nadir_gap_deg", "water_column_db", "noise_db", "absorption_db_m")
+#: Fields that are always a finite number (k_shape > 0).
+_NUMBERS = (
+    "k_shape",
+    "temperature_c",
+    "salinity_psu",
+    "depth_m",
+    "ph",
+    "tvg_log_coefficient",
+    "gain_db",
+)
+_ALONG_MODES = ("along_beam_deg", "array_length_m", "sas_resolution_m")
+
+
+def _is_real(value: Any) -> bool:
+    """An int or a float already (text, bools and other types are not)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 @dataclass(frozen=True)
@@ -140,38 +167,20 @@ class Effects:
     bits: int | None = None
 
     def __post_init__(self) -> None:
-        for name in ("along_beam_deg", "array_length_m", "sas_resolution_m", "ping_spacing_m"):
-            self._positive(name)
-        for name in ("saturation", "range_resolution_m"):
-            self._positive(name)
-        modes = [
-            n for n in ("along_beam_deg", "array_length_m", "sas_resolution_m") if getattr(self, n)
-        ]
+        self._check_numbers()
+        modes = [n for n in _ALONG_MODES if getattr(self, n)]
         if len(modes) > 1:
             raise SonarRasterError(
                 f"effects: give only one of {', '.join(modes)} (side-scan beam or SAS resolution)"
             )
-        if self.nadir_gap_deg is not None and not (
-            _finite(self.nadir_gap_deg) and 0 < self.nadir_gap_deg < 90
-        ):
+        if self.nadir_gap_deg is not None and not 0 < self.nadir_gap_deg < 90:
             raise SonarRasterError(
                 f"effects: nadir_gap_deg must be in (0, 90) degrees, got {self.nadir_gap_deg!r}"
             )
-        for name in ("water_column_db", "noise_db", "absorption_db_m"):
-            value = getattr(self, name)
-            if value is not None and not _finite(value):
-                raise SonarRasterError(f"effects: {name} must be a finite number, got {value!r}")
-        if self.absorption_db_m is not None and self.absorption_db_m < 0:
-            raise SonarRasterError("effects: absorption_db_m must be >= 0 dB/m")
-        for name in ("gain_db", "tvg_log_coefficient", "temperature_c", "salinity_psu"):
-            if not _finite(getattr(self, name)):
-                raise SonarRasterError(f"effects: {name} must be a finite number")
         if self.speckle not in SPECKLE_KINDS:
             raise SonarRasterError(
                 f"effects: unknown speckle {self.speckle!r}; use {', '.join(SPECKLE_KINDS)}"
             )
-        if not (_finite(self.k_shape) and self.k_shape > 0):
-            raise SonarRasterError(f"effects: k_shape must be > 0, got {self.k_shape!r}")
         if self.tvg not in TVG_KINDS:
             raise SonarRasterError(f"effects: unknown tvg {self.tvg!r}; use {', '.join(TVG_KINDS)}")
         self._check_curve()
@@ -180,15 +189,78 @@ class Effects:
         if self.absorption or self.tvg == "log":
             self._check_water()
 
-    def _positive(self, name: str) -> None:
-        value = getattr(self, name)
-        if value is not None and not (_finite(value) and value > 0):
-            raise SonarRasterError(f"effects: {name} must be a positive number, got {value!r}")
+    def _check_numbers(self) -> None:
+        """Every numeric field is an int or float (not text), finite, and in its range."""
+        for name in (*_POSITIVE_OR_NONE, *_NUMBER_OR_NONE, *_NUMBERS):
+            value = getattr(self, name)
+            if value is None and name not in _NUMBERS:
+                continue
+            if not _is_real(value):
+                raise SonarRasterError(f"effects: {name} must be a number, got {value!r}")
+            check = positive if name in _POSITIVE_OR_NONE or name == "k_shape" else number
+            check(f"effects: {name}", value)
+        if self.absorption_db_m is not None:
+            non_negative("effects: absorption_db_m (dB/m)", self.absorption_db_m)
+
+    @classmethod
+    def from_table(
+        cls,
+        table: Mapping[str, Any],
+        *,
+        base: str | Path | None = None,
+        where: str = "[effects]",
+        defaults: Effects | None = None,
+    ) -> Effects:
+        """Effects from an ``[effects]`` table (a scene description, a dataset config).
+
+        Parameters
+        ----------
+        table : mapping
+            Field names of :class:`Effects` to values, as TOML gives them: numbers, strings,
+            true/false. ``tvg_curve`` is a list of ``[range_m, gain_db]`` pairs or the name
+            of a CSV file of them (:func:`load_tvg_curve`).
+        base : str or Path, optional
+            Folder a ``tvg_curve`` file name is relative to (default: the working folder).
+        where : str
+            Names the table in messages, e.g. ``"scene.toml [effects]"``.
+        defaults : Effects, optional
+            The effects whose fields the table replaces (default: every effect off).
+
+        Returns
+        -------
+        Effects
+
+        Raises
+        ------
+        SonarRasterError
+            On an unknown key, a value of the wrong type or out of range, or an invalid
+            combination (the message names the key).
+        """
+        unknown = sorted(set(table) - {f.name for f in fields(cls)})
+        if unknown:
+            raise SonarRasterError(f"{where}: unknown key(s) {', '.join(unknown)}")
+        changes = dict(table)
+        for key in ("spreading", "absorption"):
+            if key in changes and not isinstance(changes[key], bool):
+                raise SonarRasterError(
+                    f"{where}: '{key}' must be true or false, got {changes[key]!r}"
+                )
+        bits = changes.get("bits")
+        if bits is not None and not (isinstance(bits, int) and bits in QUANTISE_BITS):
+            raise SonarRasterError(f"{where}: 'bits' must be 8, 12 or 16, got {bits!r}")
+        if "tvg_curve" in changes:
+            changes["tvg_curve"] = _table_curve(changes["tvg_curve"], base, where)
+        return replace(defaults, **changes) if defaults is not None else cls(**changes)
 
     def _check_curve(self) -> None:
-        curve = np.asarray(self.tvg_curve, dtype=np.float64)
+        try:
+            curve = np.asarray(self.tvg_curve, dtype=np.float64)
+        except (TypeError, ValueError):  # ragged rows or text
+            raise SonarRasterError(
+                "effects: a TVG curve needs >= 2 rows of range_m, gain_db numbers"
+            ) from None
         if self.tvg != "curve":
-            if len(curve):
+            if curve.size:
                 raise SonarRasterError('effects: tvg_curve is given but tvg is not "curve"')
             return
         if curve.ndim != 2 or curve.shape[1] != 2 or len(curve) < 2:
@@ -269,6 +341,23 @@ def load_tvg_curve(path: str) -> tuple[tuple[float, float], ...]:
     if data.shape[1] != 2:
         raise SonarRasterError(f"{path}: a TVG curve has two columns, range_m,gain_db")
     return tuple((float(r), float(g)) for r, g in data)
+
+
+def _table_curve(value: Any, base: str | Path | None, where: str) -> Any:
+    """A table's ``tvg_curve``: a CSV file name (read) or a list of [range_m, gain_db] pairs."""
+    if isinstance(value, str):
+        return load_tvg_curve(value if base is None else str(Path(base) / value))
+    rows = value if isinstance(value, (list, tuple)) else None
+    if rows is None or not all(_is_pair(row) for row in rows):
+        raise SonarRasterError(
+            f"{where}: 'tvg_curve' must be a CSV file name or a list of [range_m, gain_db] "
+            f"pairs of numbers, got {value!r}"
+        )
+    return tuple(tuple(row) for row in rows)
+
+
+def _is_pair(row: Any) -> bool:
+    return isinstance(row, (list, tuple)) and len(row) == 2 and all(map(_is_real, row))
 
 
 @dataclass
@@ -379,13 +468,11 @@ def _ping_spacing(
 ) -> float:
     for value in (fx.ping_spacing_m, ping_spacing):
         if value is not None:
-            if not (_finite(value) and value > 0):
-                raise SonarRasterError(f"ping spacing must be > 0 metres, got {value!r}")
-            return float(value)
+            return positive("ping spacing (metres)", value)
     if trajectory is not None:
         return float(trajectory.typical_spacing)
     stored: Any = image.metadata.get("ping_spacing_m")
-    if _finite(stored) and stored > 0:
+    if _is_real(stored) and math.isfinite(stored) and stored > 0:
         return float(stored)
     raise SonarRasterError(
         "the along-track beam needs the ping spacing: give ping_spacing_m or the trajectory"

@@ -30,7 +30,6 @@ each:
 
 from __future__ import annotations
 
-import argparse
 import math
 import warnings
 from collections.abc import Callable
@@ -312,56 +311,3 @@ def geotiff_jobs(directory: Path, raster: Raster) -> list[tuple[Path, Callable[[
         jobs.append((directory / name, partial(_write_geotiff, values=layer, raster=raster,
                                                description=description)))  # fmt: skip
     return jobs
-
-
-def invert_xtf_command(args: argparse.Namespace) -> int:
-    """``sonar-raster invert FILE.xtf -o DIR``: both sides, bottom-tracked, with GeoTIFFs."""
-    from ..cli.track import _write_csv, parse_pings, summary_lines
-    from ..io.commit import commit
-    from .solver import BeamProfile
-    from .write import energy_summary, write_products
-
-    out = Path(args.output)
-    options = {"max_iter": args.max_iter, "looks": getattr(args, "looks", "auto")}
-    for name in ("levels", "tol", "flat_prior", "relief_std", "slope_std"):
-        if getattr(args, name, None) is not None:
-            options[name] = getattr(args, name)
-    if getattr(args, "beam", None):
-        options["beam"] = BeamProfile.load(args.beam)
-    result = invert_xtf(
-        args.image,
-        pings=parse_pings(getattr(args, "pings", None)),
-        sides=(args.side,) if args.side else None,
-        altitude=args.altitude,
-        ping_spacing=args.ping_spacing,
-        progress=not args.quiet,
-        **options,
-    )
-    image, nav = result.image, result.navigation
-    raster = georeference(result) if nav.valid.any() else None
-    csv = partial(_write_csv, track=result.track, recorded=nav.altitude)
-    extra: list[tuple[Path, Callable[[Path], None]]] = [(out / "bottom_track.csv", csv)]
-    if raster is not None:
-        extra += geotiff_jobs(out, raster)
-    written = []
-    for side, inv in result.sides.items():
-        written += write_products(
-            inv, out / side, side, image.sonar.range_bin,
-            mesh=not getattr(args, "no_mesh", False),
-            previews=not getattr(args, "no_previews", False),
-        )  # fmt: skip
-    written += commit(extra)
-    if not args.quiet:
-        for line in summary_lines(result.track, nav.altitude, image.sonar.range_bin):
-            print(line)
-        for side, inv in result.sides.items():
-            for line in energy_summary(inv):
-                print(f"{side}: {line}")
-        if raster is None:
-            print("no navigation in the file: no GeoTIFF written")
-        else:
-            print(f"GeoTIFFs: CRS {raster.crs or 'none (file coordinates)'}, pixel "
-                  f"{raster.pixel:.3f} m")  # fmt: skip
-        for path in written:
-            print(f"wrote {path}")
-    return 0

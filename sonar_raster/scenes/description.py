@@ -260,24 +260,12 @@ def _reflectivity(table: dict, default: Any, where: str) -> Any:
 
 
 def _effects(table: dict, base: Path, where: str) -> Any:
-    """[effects]: fields of effects.Effects; tvg_curve may name a CSV next to the scene."""
+    """[effects]: fields of effects.Effects (None when absent); tvg_curve may name a CSV file."""
     if not table:
         return None
-    from dataclasses import fields as dataclass_fields
+    from ..effects.chain import Effects
 
-    from ..effects.chain import Effects, load_tvg_curve
-
-    names = {f.name for f in dataclass_fields(Effects)}
-    _no_leftovers({k: v for k, v in table.items() if k not in names}, f"{where} [effects]")
-    curve = table.get("tvg_curve")
-    if isinstance(curve, str):
-        table["tvg_curve"] = load_tvg_curve(str(base / curve))
-    elif isinstance(curve, list):
-        table["tvg_curve"] = tuple(tuple(row) if isinstance(row, list) else row for row in curve)
-    try:
-        return Effects(**table)
-    except TypeError as exc:
-        raise SonarRasterError(f"{where} [effects]: {exc}") from None
+    return Effects.from_table(table, base=base, where=f"{where} [effects]")
 
 
 # -- seabed and objects ------------------------------------------------------------------------

@@ -14,6 +14,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from .._checks import non_negative, positive
 from ..errors import SonarRasterError
 
 Mesh = tuple[np.ndarray, np.ndarray]
@@ -32,18 +33,16 @@ def _outward(vertices: np.ndarray, faces: np.ndarray) -> Mesh:
     return (vertices, faces if volume >= 0 else faces[:, ::-1].copy())
 
 
-def _positive(name: str, value: float) -> float:
-    value = float(value)
-    if not (math.isfinite(value) and value > 0):
-        raise SonarRasterError(f"object parameter '{name}' must be > 0 metres, got {value!r}")
-    return value
+def _length(name: str, value: float) -> float:
+    """A length parameter, a finite number of metres > 0."""
+    return positive(f"object parameter '{name}' (metres)", value)
 
 
 def cylinder(radius: float = 0.3, length: float = 1.8, sections: int = 48) -> Mesh:
     """Closed cylinder lying on its side, axis along x."""
     import trimesh
 
-    r, h = _positive("radius", radius), _positive("length", length)
+    r, h = _length("radius", radius), _length("length", length)
     mesh = trimesh.creation.cylinder(radius=r, height=h, sections=sections)
     v, f = _as_arrays(mesh)
     return v[:, [2, 1, 0]] * [1.0, -1.0, 1.0], f  # z axis -> x axis (a proper rotation)
@@ -60,7 +59,7 @@ def barrel(
     radius: float = 0.3, height: float = 0.9, bulge: float = 0.12, sections: int = 40
 ) -> Mesh:
     """Upright barrel: radius ``radius`` at its ends, ``radius * (1 + bulge)`` at mid height."""
-    r, h = _positive("radius", radius), _positive("height", height)
+    r, h = _length("radius", radius), _length("height", height)
     if not (0.0 <= float(bulge) < 1.0):
         raise SonarRasterError(f"barrel 'bulge' must be in [0, 1), got {bulge!r}")
     z = np.linspace(-0.5 * h, 0.5 * h, 9)
@@ -73,10 +72,8 @@ def truncated_cone(
     bottom_radius: float = 0.5, top_radius: float = 0.2, height: float = 0.6, sections: int = 40
 ) -> Mesh:
     """Upright truncated cone (a frustum), closed at both ends."""
-    rb, h = _positive("bottom_radius", bottom_radius), _positive("height", height)
-    rt = float(top_radius)
-    if not (math.isfinite(rt) and rt >= 0):
-        raise SonarRasterError(f"cone 'top_radius' must be >= 0 metres, got {top_radius!r}")
+    rb, h = _length("bottom_radius", bottom_radius), _length("height", height)
+    rt = non_negative("cone 'top_radius' (metres)", top_radius)
     profile = np.array([[0.0, -0.5 * h], [rb, -0.5 * h], [rt, 0.5 * h], [0.0, 0.5 * h]])
     if rt == 0:
         profile = profile[:3]
@@ -87,7 +84,7 @@ def tyre(major_radius: float = 0.45, minor_radius: float = 0.15, sections: int =
     """Torus lying flat: ring radius ``major_radius``, tube radius ``minor_radius``."""
     import trimesh
 
-    big, small = _positive("major_radius", major_radius), _positive("minor_radius", minor_radius)
+    big, small = _length("major_radius", major_radius), _length("minor_radius", minor_radius)
     if small >= big:
         raise SonarRasterError("tyre 'minor_radius' must be smaller than 'major_radius'")
     return _as_arrays(trimesh.creation.torus(big, small, sections, max(12, sections // 2)))
@@ -97,7 +94,7 @@ def box(size: tuple[float, float, float] | list[float] = (1.0, 0.6, 0.5)) -> Mes
     """Axis-aligned box of edge lengths ``size`` (x, y, z)."""
     import trimesh
 
-    extents = [_positive("size", s) for s in size]
+    extents = [_length("size", s) for s in size]
     if len(extents) != 3:
         raise SonarRasterError("box 'size' must be three lengths [x, y, z]")
     return _as_arrays(trimesh.creation.box(extents=extents))
@@ -118,7 +115,7 @@ def rock(
     """
     import trimesh
 
-    r = _positive("radius", radius)
+    r = _length("radius", radius)
     if not (0.0 <= float(roughness) < 1.0 and 0.0 < float(flatness) <= 1.0):
         raise SonarRasterError("rock 'roughness' must be in [0, 1) and 'flatness' in (0, 1]")
     rng = np.random.default_rng(int(seed))

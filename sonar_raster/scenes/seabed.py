@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from .._checks import fraction, number, positive
 from ..errors import SonarRasterError
 from ..scene import MeshPart
 
@@ -82,8 +83,8 @@ def heightfield_mesh(
         If the grid, spacing or reflectivity is invalid.
     """
     z = _check_grid(z)
-    dx, dy = _positive("dx", dx), _positive("dy", dy)
-    x0, y0 = _finite("x0", x0), _finite("y0", y0)
+    dx, dy = positive("seabed 'dx'", dx), positive("seabed 'dy'", dy)
+    x0, y0 = number("seabed 'x0'", x0), number("seabed 'y0'", y0)
     ny, nx = z.shape
     vertices = np.empty((ny * nx, 3), dtype=np.float64)
     vertices[:, 0] = np.tile(x0 + dx * np.arange(nx), ny)
@@ -155,10 +156,10 @@ class Heightfield:
         z = np.array(_check_grid(self.z), dtype=np.float64, copy=True)
         z.setflags(write=False)
         object.__setattr__(self, "z", z)
-        object.__setattr__(self, "x0", _finite("x0", self.x0))
-        object.__setattr__(self, "y0", _finite("y0", self.y0))
-        object.__setattr__(self, "dx", _positive("dx", self.dx))
-        object.__setattr__(self, "dy", _positive("dy", self.dy))
+        object.__setattr__(self, "x0", number("seabed 'x0'", self.x0))
+        object.__setattr__(self, "y0", number("seabed 'y0'", self.y0))
+        object.__setattr__(self, "dx", positive("seabed 'dx'", self.dx))
+        object.__setattr__(self, "dy", positive("seabed 'dy'", self.dy))
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -220,7 +221,7 @@ class Heightfield:
         exactly, on each axis.
         """
         xmin, xmax, ymin, ymax = self.extent
-        res = _positive("resolution", resolution)
+        res = positive("seabed 'resolution'", resolution)
         nx, dx = _cells(xmax - xmin, res)
         ny, dy = _cells(ymax - ymin, res)
         _check_node_count(nx + 1, ny + 1)
@@ -296,7 +297,7 @@ def level_of_detail(field: Heightfield, cell: float) -> tuple[Heightfield, dict]
         ``triangles_to``, and ``rms_m`` / ``max_m``: the RMS and largest height difference
         between the coarse surface and the fine grid at the fine nodes, metres.
     """
-    cell = _positive("cell", cell)
+    cell = positive("seabed 'cell'", cell)
     if field.dx >= cell and field.dy >= cell:
         return field, {}
     xmin, xmax, ymin, ymax = field.extent
@@ -332,45 +333,19 @@ def _cell_and_fraction(f: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
 # --------------------------------------------------------------------------- validation
 
 
-def _finite(name: str, value: Any) -> float:
-    """``value`` as a finite float, or raise naming the parameter."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise SonarRasterError(f"seabed '{name}' must be a number, got {value!r}") from None
-    if not math.isfinite(v):
-        raise SonarRasterError(f"seabed '{name}' must be finite, got {value!r}")
-    return v
-
-
-def _positive(name: str, value: Any) -> float:
-    """``value`` as a finite float > 0, or raise naming the parameter."""
-    v = _finite(name, value)
-    if v <= 0:
-        raise SonarRasterError(f"seabed '{name}' must be > 0, got {value!r}")
-    return v
-
-
-def _fraction(name: str, value: Any, upper: float = 1.0) -> float:
-    """``value`` as a float in ``[0, upper]``, or raise naming the parameter."""
-    v = _finite(name, value)
-    if not 0.0 <= v <= upper:
-        raise SonarRasterError(f"seabed '{name}' must lie in [0, {upper:g}], got {value!r}")
-    return v
-
-
-def _pair(name: str, value: Any, positive: bool) -> Pair:
-    """Convert a number or a pair of numbers to a pair of floats (each > 0 if ``positive``)."""
-    check = _positive if positive else _finite
+def _pair(name: str, value: Any, lengths: bool) -> Pair:
+    """A number or a pair of numbers as a pair of floats; ``lengths``: each > 0, one allowed."""
+    label = f"seabed '{name}'"
+    check = positive if lengths else number
     if isinstance(value, np.ndarray) and value.ndim == 0:
         value = value.item()
     if isinstance(value, (list, tuple, np.ndarray)):
         if len(value) != 2:
-            raise SonarRasterError(f"seabed '{name}' must be two numbers (x, y), got {value!r}")
-        return (check(name, value[0]), check(name, value[1]))
-    if not positive:
-        raise SonarRasterError(f"seabed '{name}' must be two numbers (x, y), got {value!r}")
-    v = check(name, value)
+            raise SonarRasterError(f"{label} must be two numbers (x, y), got {value!r}")
+        return (check(label, value[0]), check(label, value[1]))
+    if not lengths:
+        raise SonarRasterError(f"{label} must be two numbers (x, y), got {value!r}")
+    v = check(label, value)
     return (v, v)
 
 
@@ -444,9 +419,9 @@ class _Grid:
 
 def _layout(size: Any, center: Any, resolution: Any) -> _Grid:
     """Grid covering ``size`` metres around ``center`` with cells no larger than resolution."""
-    lx, ly = _pair("size", size, positive=True)
-    cx, cy = _pair("center", center, positive=False)
-    res = _positive("resolution", resolution)
+    lx, ly = _pair("size", size, lengths=True)
+    cx, cy = _pair("center", center, lengths=False)
+    res = positive("seabed 'resolution'", resolution)
     ncx, dx = _cells(lx, res)
     ncy, dy = _cells(ly, res)
     _check_node_count(ncx + 1, ncy + 1)
@@ -523,10 +498,10 @@ def flat(
     Heightfield
     """
     _seed(seed)
-    cell = _positive("max_cell", max_cell)
-    res = cell if resolution is None else min(_positive("resolution", resolution), cell)
+    cell = positive("seabed 'max_cell'", max_cell)
+    res = cell if resolution is None else min(positive("seabed 'resolution'", resolution), cell)
     grid = _layout(size, center, res)
-    return grid.heightfield(np.zeros((grid.ny, grid.nx)), _finite("depth", depth))
+    return grid.heightfield(np.zeros((grid.ny, grid.nx)), number("seabed 'depth'", depth))
 
 
 def rough(
@@ -565,15 +540,17 @@ def rough(
     """
     grid = _layout(size, center, resolution)
     rng = np.random.default_rng(_seed(seed))
-    rms = _positive("rms_height", rms_height)
-    exponent = _positive("spectral_exponent", spectral_exponent)
+    rms = positive("seabed 'rms_height'", rms_height)
+    exponent = positive("seabed 'spectral_exponent'", spectral_exponent)
     if exponent > 8.0:
         raise SonarRasterError(
             f"seabed 'spectral_exponent' must be in (0, 8], got {spectral_exponent!r}; "
             "natural seabeds have 2 to 4"
         )
-    spectrum = _power_law(exponent, _positive("correlation_length", correlation_length))
-    return grid.heightfield(rms * _spectral_field(rng, grid, spectrum), _finite("depth", depth))
+    spectrum = _power_law(exponent, positive("seabed 'correlation_length'", correlation_length))
+    return grid.heightfield(
+        rms * _spectral_field(rng, grid, spectrum), number("seabed 'depth'", depth)
+    )
 
 
 def ripples(
@@ -625,25 +602,25 @@ def ripples(
     """
     grid = _layout(size, center, resolution)
     rng = np.random.default_rng(_seed(seed))
-    lam = _positive("wavelength", wavelength)
-    amp = _positive("amplitude", amplitude)
+    lam = positive("seabed 'wavelength'", wavelength)
+    amp = positive("seabed 'amplitude'", amplitude)
     if lam < 4.0 * max(grid.dx, grid.dy):
         raise SonarRasterError(
             f"ripple wavelength {lam:g} m spans fewer than 4 cells; use resolution <= {lam / 4:g}"
         )
-    lee = 0.5 * (1.0 - _fraction("asymmetry", asymmetry, upper=0.95))
-    irr = _fraction("irregularity", irregularity)
-    rough_rms = 0.1 * amp if roughness is None else _finite("roughness", roughness)
+    lee = 0.5 * (1.0 - fraction("seabed 'asymmetry'", asymmetry, upper=0.95))
+    irr = fraction("seabed 'irregularity'", irregularity)
+    rough_rms = 0.1 * amp if roughness is None else number("seabed 'roughness'", roughness)
     if rough_rms < 0:
         raise SonarRasterError(f"seabed 'roughness' must be >= 0, got {roughness!r}")
-    heading = math.radians(_finite("direction_deg", direction_deg))
+    heading = math.radians(number("seabed 'direction_deg'", direction_deg))
     x, y = grid.coords()
     wander = _spectral_field(rng, grid, lambda k: _gauss(k * 5.0 * lam * math.sqrt(2.0)))
     phase = (x * math.sin(heading) + y * math.cos(heading)) / lam + 0.5 * irr * wander
     relief = amp * _ripple_profile(phase - np.floor(phase), 1.0 - lee)
     if rough_rms > 0:
         relief += rough_rms * _spectral_field(rng, grid, _power_law(3.25, lam))
-    return grid.heightfield(relief, _finite("depth", depth))
+    return grid.heightfield(relief, number("seabed 'depth'", depth))
 
 
 def _ripple_profile(u: np.ndarray, stoss: float) -> np.ndarray:
@@ -694,10 +671,10 @@ def bumpy(
     """
     grid = _layout(size, center, resolution)
     rng = np.random.default_rng(_seed(seed))
-    height = _positive("bump_height", bump_height)
-    width = _positive("bump_width", bump_width)
-    rate = _positive("density", density)
-    hollow = _fraction("hollow_fraction", hollow_fraction)
+    height = positive("seabed 'bump_height'", bump_height)
+    width = positive("seabed 'bump_width'", bump_width)
+    rate = positive("seabed 'density'", density)
+    hollow = fraction("seabed 'hollow_fraction'", hollow_fraction)
     if width < max(grid.dx, grid.dy):
         raise SonarRasterError(
             f"bump_width {width:g} m is narrower than a cell; use resolution <= {width:g}"
@@ -715,7 +692,7 @@ def bumpy(
     relief = np.zeros((grid.ny, grid.nx))
     for k in range(count):
         _add_bump(relief, grid, cx[k], cy[k], h[k], s[k])
-    return grid.heightfield(relief, _finite("depth", depth))
+    return grid.heightfield(relief, number("seabed 'depth'", depth))
 
 
 def _add_bump(relief: np.ndarray, grid: _Grid, cx: float, cy: float, h: float, s: float) -> None:
@@ -816,7 +793,7 @@ def load_elevation(
     field = Heightfield(z, *geo)
     if resolution is None:
         return field
-    return field.resampled(_positive("resolution", resolution))
+    return field.resampled(positive("seabed 'resolution'", resolution))
 
 
 def _from_plain_grid(
@@ -825,8 +802,8 @@ def _from_plain_grid(
     """Heightfield of a grid from a file that holds no spacing."""
     if resolution is None:
         raise SonarRasterError(f"{path} holds no grid spacing; give 'resolution' (metres per cell)")
-    dx, dy = _pair("resolution", resolution, positive=True)
-    x0, y0 = (0.0, 0.0) if origin is None else _pair("origin", origin, positive=False)
+    dx, dy = _pair("resolution", resolution, lengths=True)
+    x0, y0 = (0.0, 0.0) if origin is None else _pair("origin", origin, lengths=False)
     try:
         return Heightfield(z, x0, y0, dx, dy)
     except SonarRasterError as exc:

@@ -1,0 +1,70 @@
+"""``sonar-raster dataset``: a labelled dataset (images, masks, YOLO, COCO) from a config."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from .._checks import cli_positive
+from ..errors import SonarRasterError
+
+
+def add_parser(sub: Any) -> None:
+    """Add the ``dataset`` subcommand to an argparse subparsers object."""
+    ds = sub.add_parser(
+        "dataset",
+        help="generate a labelled dataset (images, masks, YOLO, COCO) from a config",
+        description="Render N randomised, labelled samples from a dataset config (.toml, or a "
+        "bundled one such as 'dataset_default') into DIR; rerunning resumes a stopped run.",
+    )
+    ds.add_argument("config", help="dataset config file or bundled name")
+    ds.add_argument("-o", "--output", required=True, metavar="DIR", help="output directory")
+    ds.add_argument(
+        "-n", dest="count", type=cli_positive(int), metavar="N", help="samples (default: config)"
+    )
+    ds.add_argument("--workers", type=cli_positive(int), default=1, help="worker processes")
+    ds.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler tcp://... or 'local'")
+    ds.add_argument("--seed", type=int, default=None, help="global seed (default: config)")
+    ds.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``sonar-raster dataset``; an interrupted run keeps its finished samples."""
+    from ..dataset.generate import generate_dataset, load_dataset_config
+
+    config = load_dataset_config(_config_path(args.config))
+    try:
+        summary = generate_dataset(
+            config,
+            args.output,
+            count=args.count,
+            seed=args.seed,
+            workers=args.workers,
+            scheduler=args.scheduler,
+            progress=not args.quiet,
+        )
+    except KeyboardInterrupt:
+        print(
+            f"sonar-raster: interrupted; finished samples are kept in {args.output}; "
+            "run the same command again to resume",
+            file=sys.stderr,
+        )
+        return 130
+    if not args.quiet:
+        print(summary.text())
+    return 0
+
+
+def _config_path(name: str) -> Path:
+    """A config file, or a bundled config by name (``dataset_default``)."""
+    path = Path(name)
+    if path.exists() or path.suffix:
+        return path
+    from ..scenes.bundled import bundled_dataset_config
+
+    bundled = bundled_dataset_config(name)
+    if bundled is not None:
+        return bundled
+    raise SonarRasterError(f"no dataset config {name!r}; give a .toml file or dataset_default")

@@ -1,0 +1,225 @@
+"""``sonar-raster invert``: reflectivity, beam profile and elevation from an image or XTF file."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+from .._checks import cli_positive
+from ..errors import SonarRasterError
+from .track import parse_pings
+
+
+def _looks(text: str) -> float | str | None:
+    """``--looks``: a number > 0, ``auto`` or ``none``."""
+    if text.lower() in ("auto", "none"):
+        return None if text.lower() == "none" else "auto"
+    try:
+        return cli_positive(float)(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(
+            f"must be a number > 0, auto or none, got {text}"
+        ) from None
+
+
+_looks.__name__ = "looks"
+
+
+def add_parser(sub: Any) -> None:
+    """Add the ``invert`` subcommand to an argparse subparsers object."""
+    inv = sub.add_parser(
+        "invert",
+        help="recover reflectivity, beam profile and elevation from one image side",
+        description="Invert IMAGE (.npy, .exr or .png; rows = pings, columns = slant-range "
+        "bins from range 0; the renderer's EXR as is) into DIR/elevation.exr, "
+        "reflectivity.exr, beam.exr (rows = pings, columns = ground-range cells, NaN = no "
+        "estimate), ground.exr (the image in ground range at the recovered elevation), "
+        "even.exr (evenly illuminated, seed Eq. 22), beam_profile.json, seabed.glb/.ply "
+        "(textured mesh), preview_az*.png (four views) and DIR/inversion.json. An XTF file "
+        "(.xtf) is inverted on both sides (or --side) with its bottom track as altitude, into "
+        "DIR/port/ and DIR/starboard/, plus DIR/bottom_track.csv and, with navigation, "
+        "GeoTIFFs DIR/elevation.tif, reflectivity.tif and mosaic.tif.",
+    )
+    inv.add_argument("image", help="input image, or an .xtf file")
+    inv.add_argument("-o", "--output", required=True, metavar="DIR", help="output directory")
+    inv.add_argument(
+        "--range-bin",
+        type=cli_positive(float),
+        metavar="METRES",
+        help="slant-range bin size (read from a renderer EXR when omitted)",
+    )
+    inv.add_argument(
+        "--altitude",
+        type=cli_positive(float),
+        metavar="METRES",
+        help="sonar altitude (default: first bottom return of each ping)",
+    )
+    inv.add_argument("--side", choices=("port", "starboard"), help="which side of an EXR")
+    inv.add_argument(
+        "--max-iter",
+        type=cli_positive(int),
+        default=300,
+        metavar="N",
+        help="most iterations per pyramid level and start (default 300; fewer is faster, coarser)",
+    )
+    inv.add_argument(
+        "--ping-spacing",
+        type=cli_positive(float),
+        metavar="METRES",
+        help="along-track distance between pings, for the along-track slope (default: the "
+        "ground cell size)",
+    )
+    inv.add_argument(
+        "--levels",
+        type=cli_positive(int),
+        default=3,
+        metavar="N",
+        help="pyramid levels (default 3)",
+    )
+    inv.add_argument(
+        "--tol",
+        type=cli_positive(float),
+        default=1e-2,
+        help="stop a level when E falls by less than TOL x E in an iteration (default 1e-2)",
+    )
+    inv.add_argument(
+        "--beam",
+        metavar="FILE",
+        help="calibrated mode: fix the beam profile from a beam_profile.json of an earlier run",
+    )
+    inv.add_argument(
+        "--flat-prior",
+        type=cli_positive(float),
+        metavar="W",
+        help="prior that the seabed is flat at the altitude on scales above 0.2 x altitude "
+        "(weight W, try 0.25): for broadly flat seabeds with small relief and a trusted "
+        "--altitude; it flattens broad mounds and trenches",
+    )
+    inv.add_argument(
+        "--looks",
+        type=_looks,
+        default="auto",
+        metavar="L|auto|none",
+        help="speckle looks of the image, which weigh priors on the relief and slopes against "
+        "the image noise (default auto: estimated from neighbouring pings; none: no priors, "
+        "for noise-free images)",
+    )
+    inv.add_argument(
+        "--relief-std",
+        type=cli_positive(float),
+        default=0.1,
+        metavar="METRES",
+        help="relief about the flat seabed assumed on speckled images (default 0.1)",
+    )
+    inv.add_argument(
+        "--slope-std",
+        type=cli_positive(float),
+        default=0.2,
+        metavar="S",
+        help="seabed slope (rise over run) assumed on speckled images (default 0.2)",
+    )
+    inv.add_argument("--no-mesh", action="store_true", help="skip seabed.glb and seabed.ply")
+    inv.add_argument("--no-previews", action="store_true", help="skip the preview renders")
+    inv.add_argument(
+        "--pings", metavar="A:B", help="XTF input: ping range to invert (indices, stop excluded)"
+    )
+    inv.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``sonar-raster invert``: one side of an image, or both sides of an XTF file."""
+    if Path(args.image).suffix.lower() == ".xtf":
+        return _invert_xtf(args)
+    from ..inversion.solver import BeamProfile, invert
+    from ..inversion.write import energy_summary, read_side, write_products
+
+    image, side, attrs = read_side(Path(args.image), args.side)
+    range_bin = args.range_bin or attrs.get("sonar:range_bin_m")
+    if not range_bin:
+        raise SonarRasterError("--range-bin is required for this image")
+    beam = BeamProfile.load(args.beam) if args.beam else None
+    result = invert(
+        image,
+        float(range_bin),
+        altitude=args.altitude,
+        ping_spacing=args.ping_spacing,
+        max_iter=args.max_iter,
+        levels=args.levels,
+        tol=args.tol,
+        beam=beam,
+        flat_prior=args.flat_prior or 0.0,
+        looks=args.looks,
+        relief_std=args.relief_std,
+        slope_std=args.slope_std,
+        progress=not args.quiet,
+    )
+    written = write_products(
+        result,
+        Path(args.output),
+        side,
+        float(range_bin),
+        mesh=not args.no_mesh,
+        previews=not args.no_previews,
+    )
+    if not args.quiet:
+        for line in energy_summary(result):
+            print(line)
+        for path in written:
+            print(f"wrote {path}")
+    return 0
+
+
+def _invert_xtf(args: argparse.Namespace) -> int:
+    """``sonar-raster invert FILE.xtf -o DIR``: both sides, bottom-tracked, with GeoTIFFs."""
+    from ..inversion.solver import BeamProfile
+    from ..inversion.track_io import summary_lines, write_track_csv
+    from ..inversion.write import energy_summary, write_products
+    from ..inversion.xtf import georeference, geotiff_jobs, invert_xtf
+    from ..io.commit import commit
+
+    out = Path(args.output)
+    options: dict[str, Any] = {"max_iter": args.max_iter, "looks": args.looks}
+    for name in ("levels", "tol", "flat_prior", "relief_std", "slope_std"):
+        if getattr(args, name) is not None:
+            options[name] = getattr(args, name)
+    if args.beam:
+        options["beam"] = BeamProfile.load(args.beam)
+    result = invert_xtf(
+        args.image,
+        pings=parse_pings(args.pings),
+        sides=(args.side,) if args.side else None,
+        altitude=args.altitude,
+        ping_spacing=args.ping_spacing,
+        progress=not args.quiet,
+        **options,
+    )
+    image, nav = result.image, result.navigation
+    raster = georeference(result) if nav.valid.any() else None
+    csv = partial(write_track_csv, track=result.track, recorded=nav.altitude)
+    extra: list[tuple[Path, Callable[[Path], None]]] = [(out / "bottom_track.csv", csv)]
+    if raster is not None:
+        extra += geotiff_jobs(out, raster)
+    written = []
+    for side, inv in result.sides.items():
+        written += write_products(
+            inv, out / side, side, image.sonar.range_bin,
+            mesh=not args.no_mesh, previews=not args.no_previews,
+        )  # fmt: skip
+    written += commit(extra)
+    if not args.quiet:
+        for line in summary_lines(result.track, nav.altitude, image.sonar.range_bin):
+            print(line)
+        for side, inv in result.sides.items():
+            for line in energy_summary(inv):
+                print(f"{side}: {line}")
+        if raster is None:
+            print("no navigation in the file: no GeoTIFF written")
+        else:
+            print(f"GeoTIFFs: CRS {raster.crs or 'none (file coordinates)'}, pixel "
+                  f"{raster.pixel:.3f} m")  # fmt: skip
+        for path in written:
+            print(f"wrote {path}")
+    return 0
