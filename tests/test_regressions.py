@@ -96,7 +96,7 @@ def _sidelobe_survey():
     strict=True,
     reason=(
         "accuracy, not stability: the column table holds Φ at each column's centre times its "
-        "width (sonar_raster/raster.py, _column_tables: phi = sonar.beam(alpha - beam_axis)), "
+        "width (sonar_raster/rendering/gl/raster.py, _column_tables: phi = sonar.beam(alpha - beam_axis)), "
         "a midpoint rule; near nadir a column is ~1.8° wide here, as wide as the beam's "
         "lobes, so the ping's energy is off by 0.39 % (3.6 %, 0.39 %, 0.097 %, 0.031 %, "
         "0.003 % at 1, 2, 4, 8, 16 columns per bin). Averaging Φ over each column (8 points) "
@@ -181,3 +181,35 @@ def test_inversion_is_scale_equivariant():
     np.testing.assert_allclose(b.elevation, a.elevation, rtol=1e-9, equal_nan=True)
     np.testing.assert_allclose(b.beam, a.beam * 1e30, rtol=1e-9, equal_nan=True)
     np.testing.assert_allclose(b.energies[-1], np.multiply(a.energies[-1], 1e60), rtol=1e-9)
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason=(
+        "accuracy at nadir, not stability: a box top exactly 3 range bins (1.5 m at 0.5 m bins) "
+        "under a single port ping, the clearance test_stress.py's GL-vs-reference test allows "
+        "(NADIR_CLEARANCE_BINS = 3): relative L1 5.26 % against RENDERERS_TOL = 5 %. Hypothesis "
+        "drew it in a full-suite run (its example pool depends on the modules loaded), so the "
+        "stress test passes or fails on this case by chance; pinned here until nadir sampling "
+        "(the warp's near-nadir floor) is refined"
+    ),
+)
+def test_box_top_three_bins_under_a_single_ping(gl):
+    seabed = rect_seabed(-12.0, 12.0, -12.0, 12.0, z=0.0, reflectivity=1.0)
+    box = box_from_bounds([[-1.0, -3.0, -0.5], [1.0, 3.0, 1.5]], reflectivity=1.0)
+    scene = build_scene([seabed, box])
+    sonar = Sonar(max_range=10.0, range_bin=0.5, beam=BeamPattern.uniform(), sides=("port",))
+    traj = Trajectory(
+        np.array([[0.0, 0.0, 3.0]]),
+        np.array([0.54105207]),
+        np.array([0.00478086]),
+        np.array([0.0]),
+    )
+    ref = render_reference(scene, sonar, traj)
+    gl.settings = RasterSettings(oversample=4.0, along_samples=16)
+    try:
+        image = gl.render(scene, sonar, traj)
+    finally:
+        gl.settings = RasterSettings()
+    err = np.abs(image.sides["port"] - ref.sides["port"]).sum() / ref.sides["port"].sum()
+    assert err <= 0.05, f"relative L1 {err:.4f}"

@@ -30,9 +30,11 @@ def check_directory(path: Path) -> None:
     if not directory.is_dir():
         raise SonarRasterError(f"cannot write {path}: {directory} is not a directory")
 
+
 def temp_name(final: Path) -> Path:
     """A hidden, unique temporary name beside ``final`` (``.<name>.<token><suffix>``)."""
     return final.with_name(f".{final.name}.{secrets.token_hex(6)}{final.suffix}")
+
 
 def commit(jobs: list[tuple[Path, Callable[[Path], None]]]) -> list[Path]:
     r"""Write several files all-or-nothing; return their final paths.
@@ -68,6 +70,7 @@ def commit(jobs: list[tuple[Path, Callable[[Path], None]]]) -> list[Path]:
             tmp.unlink(missing_ok=True)
     return [final for final, _ in jobs]
 
+
 def write_oiio(tmp: Path, pixels: np.ndarray, spec: oiio.ImageSpec) -> None:
     """Encode (h, w, c) pixels with OpenImageIO; raise RuntimeError on failure."""
     out = oiio.ImageOutput.create(str(tmp))
@@ -80,6 +83,7 @@ def write_oiio(tmp: Path, pixels: np.ndarray, spec: oiio.ImageSpec) -> None:
             raise RuntimeError(out.geterror())
     finally:
         out.close()
+
 
 def write_json(tmp: Path, doc: object) -> None:
     """Write ``doc`` as indented JSON to a new file ``tmp`` (NaN refused)."""

@@ -25,6 +25,7 @@ VISIBILITY_REL_TOL = 1e-4
 #: Absolute slant-range tolerance of the visibility test, metres.
 VISIBILITY_ABS_TOL = 1e-5
 
+
 @dataclass(frozen=True)
 class Frame:
     """One track segment in the scene's local coordinates.
