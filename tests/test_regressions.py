@@ -96,7 +96,7 @@ def _sidelobe_survey():
     strict=True,
     reason=(
         "accuracy, not stability: the column table holds Φ at each column's centre times its "
-        "width (sonar_raster/rendering/gl/raster.py, _column_tables: phi = sonar.beam(alpha - beam_axis)), "
+        "width (rendering/gl/raster.py, _column_tables: phi = sonar.beam(alpha - beam_axis)), "
         "a midpoint rule; near nadir a column is ~1.8° wide here, as wide as the beam's "
         "lobes, so the ping's energy is off by 0.39 % (3.6 %, 0.39 %, 0.097 %, 0.031 %, "
         "0.003 % at 1, 2, 4, 8, 16 columns per bin). Averaging Φ over each column (8 points) "
