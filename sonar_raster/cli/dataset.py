@@ -4,11 +4,9 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 from typing import Any
 
 from .._checks import cli_positive
-from ..errors import SonarRasterError
 
 
 def add_parser(sub: Any) -> None:
@@ -34,7 +32,7 @@ def run(args: argparse.Namespace) -> int:
     """Run ``sonar-raster dataset``; an interrupted run keeps its finished samples."""
     from ..dataset.generate import generate_dataset, load_dataset_config
 
-    config = load_dataset_config(_config_path(args.config))
+    config = load_dataset_config(args.config)
     try:
         summary = generate_dataset(
             config,
@@ -55,16 +53,3 @@ def run(args: argparse.Namespace) -> int:
     if not args.quiet:
         print(summary.text())
     return 0
-
-
-def _config_path(name: str) -> Path:
-    """A config file, or a bundled config by name (``dataset_default``)."""
-    path = Path(name)
-    if path.exists() or path.suffix:
-        return path
-    from ..scenes.bundled import bundled_dataset_config
-
-    bundled = bundled_dataset_config(name)
-    if bundled is not None:
-        return bundled
-    raise SonarRasterError(f"no dataset config {name!r}; give a .toml file or dataset_default")

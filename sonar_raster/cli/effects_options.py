@@ -40,7 +40,7 @@ def _number(text: str) -> float:
 def add_effect_options(parser: argparse.ArgumentParser) -> None:
     """Add the effect options to the ``render`` parser (all default to the scene's values)."""
     group = parser.add_argument_group(
-        "sensor effects (override the scene's [effects]; see README 'Sensor effects')"
+        "sensor effects (override the scene's [effects]; see docs/effects.md)"
     )
     add = group.add_argument
     add("--along-beam-deg", type=_number, metavar="DEG", help="side-scan horizontal beam width")

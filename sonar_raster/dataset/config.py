@@ -4,7 +4,7 @@ A value is a number, string or list (fixed), or a one-key table naming a distrib
 ``{ uniform = [a, b] }``, ``{ loguniform = [a, b] }``, ``{ normal = [mean, std] }`` (optional
 ``min`` and ``max`` clip it), ``{ integers = [lo, hi] }`` (both included), ``{ poisson = mean }``
 or ``{ choice = [v1, v2, ...] }`` (optional ``weights``). A list whose items are distributions
-draws each item (e.g. a box's ``size``). The format is documented in the README ("Datasets").
+draws each item (e.g. a box's ``size``). The format is documented in docs/datasets.md.
 """
 
 from __future__ import annotations
@@ -362,13 +362,27 @@ def _check_render(render: dict, where: str) -> None:
         raise SonarRasterError(f"{where}: {exc}") from None
 
 
+def _config_path(name: str | Path) -> Path:
+    """A config file, or a bundled config by name (``dataset_default``)."""
+    path = Path(name)
+    if path.exists() or path.suffix:
+        return path
+    from ..scenes.bundled import bundled_dataset_config
+
+    bundled = bundled_dataset_config(str(name))
+    if bundled is None:
+        raise SonarRasterError(f"no dataset config {name!r}; give a .toml file or dataset_default")
+    return bundled
+
+
 def load_dataset_config(path: str | Path) -> DatasetConfig:
     """Read and check a dataset configuration file.
 
     Parameters
     ----------
     path : str or Path
-        A ``.toml`` file (format: README, "Datasets").
+        A ``.toml`` file (format: docs/datasets.md), or the name of a bundled config
+        (``"dataset_default"``).
 
     Returns
     -------
@@ -380,7 +394,7 @@ def load_dataset_config(path: str | Path) -> DatasetConfig:
         On a missing file, invalid TOML, an unknown key or an invalid value (the message names
         the table and key).
     """
-    path = Path(path)
+    path = _config_path(path)
     if not path.is_file():
         raise SonarRasterError(f"dataset config {path} does not exist")
     where = path.name

@@ -309,8 +309,9 @@ def generate_dataset(
 
     Parameters
     ----------
-    config : DatasetConfig or path
-        The dataset configuration (a ``.toml`` path is loaded).
+    config : DatasetConfig, path or name
+        The dataset configuration (a ``.toml`` path, or a bundled config's name such as
+        ``"dataset_default"``, is loaded).
     out_dir : str or Path
         Output folder; created if missing. It must be empty or hold this dataset (same config
         and seed).

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 from functools import partial
 from pathlib import Path
@@ -107,7 +108,7 @@ PRODUCTS = {
 
 def write_products(
     inv: Inversion,
-    directory: Path,
+    directory: str | os.PathLike,
     side: str,
     range_bin: float,
     *,
@@ -124,8 +125,26 @@ def write_products(
     ``preview_az{045,135,225,315}.png`` renders of the mesh (``preview_size`` = width, height
     in pixels; GL ``backend`` as :func:`.gl.create_context`). Every file is
     made before any is renamed into place, so a failure leaves no product behind.
+
+    Parameters
+    ----------
+    inv : Inversion
+        The result of :func:`~sonar_raster.invert`.
+    directory : str or path-like
+        Output folder; created if missing.
+    side : {"port", "starboard"}
+        The side that was inverted (recorded in ``inversion.json``).
+    range_bin : float
+        Slant-range bin of the inverted image, metres (recorded in ``inversion.json``).
+
+    Returns
+    -------
+    list of Path
+        The files written.
     """
     from ..io.commit import commit, write_json
+
+    directory = Path(directory)
 
     maps = {"elevation": inv.elevation, "reflectivity": inv.reflectivity, "beam": inv.beam}
     if inv.reprojected is not None:

@@ -12,12 +12,13 @@ from .._lazy import lazy_exports
 
 if TYPE_CHECKING:
     from .images import read_exr, read_pixels, write_image
-    from .xtf import XtfNavigation, XtfReader, XtfWriter, read_xtf, write_xtf
+    from .xtf import XtfNavigation, XtfReader, XtfWriter, iter_pings, read_xtf, write_xtf
 
 __all__ = [
     "XtfNavigation",
     "XtfReader",
     "XtfWriter",
+    "iter_pings",
     "read_exr",
     "read_pixels",
     "read_xtf",
@@ -34,6 +35,7 @@ __getattr__, __dir__ = lazy_exports(
         "XtfNavigation": "xtf",
         "XtfReader": "xtf",
         "XtfWriter": "xtf",
+        "iter_pings": "xtf",
         "read_xtf": "xtf",
         "write_xtf": "xtf",
     },

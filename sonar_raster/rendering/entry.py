@@ -32,6 +32,7 @@ def render(
     pulse: Pulse | None = None,
     coherent: Mapping[str, Any] | None = None,
     raster_units: bool = True,
+    labels: bool = False,
     progress: bool = False,
 ) -> SonarImage:
     """Render raw side-scan intensity of ``scene`` seen by ``sonar`` along ``trajectory``.
@@ -59,6 +60,8 @@ def render(
     raster_units : bool
         Coherent model only: scale its image to the raster's units (m², no 1/r⁴ spreading) so
         that the three models compare directly; False keeps the physical echo level.
+    labels : bool
+        Raster model only: also return per-pixel object ids (``image.labels``), for datasets.
     progress : bool
         Show a progress bar (raster and coherent).
 
@@ -70,6 +73,8 @@ def render(
     """
     if model not in MODELS:
         raise SonarRasterError(f"unknown model {model!r}; use one of {', '.join(MODELS)}")
+    if labels and model != "raster":
+        raise SonarRasterError(f"labels come from the raster model only, not {model!r}")
     if model == "reference":
         from .reference import render_reference
 
@@ -86,5 +91,11 @@ def render(
     from .gl.raster import render_raster
 
     return render_raster(
-        scene, sonar, trajectory, backend=backend, settings=settings, progress=progress
+        scene,
+        sonar,
+        trajectory,
+        backend=backend,
+        settings=settings,
+        progress=progress,
+        labels=labels,
     )

@@ -3,7 +3,7 @@
 A description is turned into plain data: a :class:`Scene`, a :class:`Sonar` and a
 :class:`Trajectory`. A bare model file (glTF, OBJ, PLY, STL, VRML) gets a default flat sandy
 seabed and a track that passes it in the middle of the starboard swath. The format is
-documented in the README ("Scene description files").
+documented in docs/scene-files.md.
 """
 
 from __future__ import annotations

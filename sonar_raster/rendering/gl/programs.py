@@ -1,4 +1,4 @@
-"""Load GLSL sources shipped in ``sonar_raster.shaders`` and specialise them with #defines."""
+"""Load the GLSL sources beside this module (``rendering/gl/*.glsl``), specialised by #defines."""
 
 from __future__ import annotations
 
