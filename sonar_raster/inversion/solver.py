@@ -56,16 +56,11 @@ BEAM_SMOOTHING = 100.0
 REFLECTIVITY_EDGE = 0.0
 #: Ground cells whose slant range at the altitude lies within this many bins of the last fitted
 #: bin get no estimate (NaN): their returns and their slope neighbours' fall partly outside the
-#: data, and on the ripples of ``tools/bench_inversion.py`` (known altitude, flat prior 0.25,
-#: tol 1e-4) the last six cells' Z swung by 8–28 cm.
+#: data (measurements: docs/inversion.md).
 EDGE_BINS = 6
 #: Points each ground cell's return is spread over along its tangent plane (see
-#: :mod:`sonar_raster.inversion.model`). 3 brings the model within 0.5 % of the exact density of a
-#: flat seabed (5.6 % at 1), but measured with ``tools/bench_inversion.py --subsamples 3`` it
-#: is mixed: ripples 1.20 × instead of 0.64 × (0.35 instead of 0.40 × with the true altitude and
-#: the flat prior), the 96-ping mound calibrated 0.20 × instead of 0.51 ×, patches 2.47 / 3.56 ×
-#: instead of 2.08 / 3.12 ×. Without a prior the result is set by the drift along the
-#: directions the image does not fix, so a better model does not reliably help; kept at 1.
+#: :mod:`sonar_raster.inversion.model`); more points model a flat seabed more exactly but did
+#: not invert better (docs/inversion.md), so 1.
 SUBSAMPLES = 1
 #: Standard deviations of the seabed's relief about the flat seabed at the altitude (metres) and
 #: of its slopes assumed by the priors on a speckled image (``looks`` of :func:`invert`).
@@ -288,19 +283,16 @@ def invert(
     ground_bin : float, optional
         Ground-range cell size, metres, at most ``range_bin`` (default: ``range_bin``). Each
         cell's return is placed at one range and split between the two nearest bins, so cells
-        longer than a bin in range alias: against the exact density of a flat seabed (10 m
-        below, 5 cm bins, 12–19 m range) the model is off by 1.3 % at 2.5 cm cells, 5.6 % at
-        5 cm and 22 % at 10 cm.
+        longer than a bin in range would alias; they are refused.
     levels : int
         Pyramid levels (each halves both axes).
     max_iter : int
         Most EM iterations per level.
     tol : float
-        Each start of a level stops when an iteration lowers E by less than ``tol * E``. The
-        default 1e-2 is also a regulariser: E has near-flat directions (absolute level, tilt,
-        Φ against relief) that long runs drift along; on the ripples of
-        ``tools/bench_inversion.py`` tol 1e-2 gave 0.64 × the relief's std in 2 s, 1e-4 0.78 ×
-        in 16 s.
+        Each start of a level stops when an iteration lowers E by less than ``tol * E``. E has
+        near-flat directions (absolute level, tilt, Φ against relief) that long runs drift
+        along, so the default 1e-2 also regularises (run time against error:
+        docs/inversion.md).
     beam : BeamProfile, optional
         Calibrated mode: Φ fixed from this profile; only R and Z are estimated.
     steps : Steps, optional
@@ -309,30 +301,19 @@ def invert(
         Weight of a prior that the seabed is flat at the altitude on scales above
         ``FLAT_PRIOR_SCALE`` × the altitude (2 m at 10 m): ``Σ (G (Z − Z_flat))²``, ``G`` a
         Gaussian low-pass, a deviation of one range bin costing ``flat_prior`` times the mean
-        squared data of a ground cell. 0 (default) leaves it out. Without layover the model
-        image is ``I(ρ) = −Φ R ρ dγ/dρ``, ``γ`` the depression angle of the seabed point at
-        range ``ρ``, so Z follows from integrating outward from nadir, and a relative error
-        ε in Φ R bends it by ``x (π/2 − γ) ε`` (18 cm at 17 m ground range and 10 m altitude
-        for ε = 1 %). R's scale and slow variations and Φ's shape absorb such a bending, so
-        the image hardly fixes it and the fit drifts along it with every mismatch between
-        model and image; the prior holds it at the altitude's flat seabed. Use it over
-        broadly flat seabeds with small relief (ripples, roughness) and a trusted altitude
-        (``altitude``); it flattens relief broader than the low-pass (a mound of 1.5 m σ, a
-        trench), and on ripples with the first-return altitude it keeps that altitude's
-        bias. See ``tools/bench_inversion.py``.
+        squared data of a ground cell. 0 (default) leaves it out. The image hardly fixes a
+        broad bending of Z (R and Φ absorb it; docs/inversion.md derives why), and the prior
+        holds it at the altitude's flat seabed. For broadly flat seabeds with small relief and
+        a trusted ``altitude``; it flattens relief broader than the low-pass.
     looks : float, "auto" or None
         Speckle looks L of the image: each bin's intensity is taken to vary about the model
         with variance ``Î² / L``, and two priors on Z join the fit with weights of that noise
         variance over the assumed variance of the relief (``relief_std``, about the flat
         seabed at the altitude) and of the slopes (``slope_std``, across and along track):
         the MAP estimate under Gaussian noise, relief and slopes. ``"auto"`` (default) estimates
-        L from neighbouring pings (see
-        :func:`sonar_raster.inversion.priors.estimate_looks`, at least 1; the renders of
-        ``tools/bench_inversion.py`` give 55 to 5·10¹⁰ noise-free, and 1.0, 1.9–2.1, 6.7–8.3
-        and 20–33 with 1, 2, 8 and 32 looks of speckle); None leaves the priors out. Without
-        them, speckle turns into relief: the model image does not depend on the along-track
-        slope, so each ping's Z is fitted alone, and the intensity's sensitivity to the slope
-        falls to zero at nadir, so noise integrates outward into a wandering profile.
+        L from neighbouring pings (:func:`sonar_raster.inversion.priors.estimate_looks`, at
+        least 1); None leaves the priors out, for noise-free images (on a speckled image
+        speckle then turns into relief).
     relief_std, slope_std : float
         Standard deviations assumed by those priors: relief in metres, slopes as rise over
         run.
