@@ -5,10 +5,10 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import SHARED_DATA
 
 from sonar_raster.errors import SonarRasterError
 from sonar_raster.meshio.load import load_model
@@ -16,7 +16,7 @@ from sonar_raster.meshio.load import load_model
 trimesh = pytest.importorskip("trimesh")
 T = trimesh.transformations
 
-DATA = Path(__file__).parents[1] / ".." / "shared" / "data" / "vrml"
+DATA = SHARED_DATA / "vrml"
 
 
 def box(extents=(1.0, 2.0, 3.0), colour=None):

@@ -8,11 +8,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import SHARED_DATA
 
 from sonar_raster.errors import SonarRasterError
 from sonar_raster.meshio.vrml import SEGMENTS, load_vrml, parse_vrml
 
-DATA = Path(__file__).parents[1] / ".." / "shared" / "data" / "vrml"
+DATA = SHARED_DATA / "vrml"
 HEADER = "#VRML V2.0 utf8\n"
 
 

@@ -17,7 +17,7 @@ from sonar_raster.dataset.scene import draw_sample
 from sonar_raster.errors import SonarRasterError
 from sonar_raster.scenes.objects import build_primitive
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 SMALL = """
 [dataset]
