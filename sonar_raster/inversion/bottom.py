@@ -1,25 +1,34 @@
 """Bottom tracking: the sonar's altitude per ping from the first bottom return.
 
-Per side and ping the first return is a step in log intensity from the water column to the
-seabed. The detector works on ``L = ln(I + ε)`` averaged over 3 neighbouring pings (speckle is
-multiplicative, so its log has a fixed spread, π/√6 nepers for fully developed speckle):
+Per side and ping the first return is found in two steps: a robust edge in log intensity gives
+its bin, and a model of the nadir return gives its place inside the bin.
 
-1. Leading bins brighter than twice the image's typical level in every ping's median (a
-   transmit pulse or saturated blanking, as in real recorders) are skipped.
-2. The step score of bin k is the mean of L over the ``window`` bins from k on minus the mean
-   over every bin before k (back to the blanking): the water column before the first return
-   gives the largest score, later rises (the end of a shadow) are compared with seabed as well
-   and score less, and an isolated bright speck in the water column moves the mean of a
-   window only a little. The first local maximum of the score above half the ping's largest
-   is the edge; the ping's own contrast there (the same step on its own samples, not
-   averaged with its neighbours), in dB, must reach ``min_contrast_db`` or the ping has no
-   clear return.
-3. The sub-bin range is where L crosses the mid level between the two means, the crossing
-   nearest the edge, interpolated between bin centres; then again where it crosses halfway
-   between the water column and the mean of the 3 bins after that first crossing (the seabed
-   often brightens away from nadir, which moves the first crossing out); plus half a bin: a
-   sharp edge anywhere inside a bin crosses at about that bin's start, so this centres the
-   error (at most half a bin on a clean, sharp edge).
+1. On ``L = ln(I + ε)`` averaged over 5 neighbouring pings (speckle is multiplicative, so its log
+   has a fixed spread), leading bins brighter than twice the image's typical level in every
+   ping's median (a transmit pulse or saturated blanking) are skipped. The step score of bin k
+   is the mean of L over the ``window`` bins from k on minus the mean over every bin before k:
+   the water column before the first return gives the largest score, and an isolated bright
+   speck moves the mean of a window only a little. The first local maximum of the score above
+   half the ping's largest is the edge; the ping's own contrast there, in dB, must reach
+   ``min_contrast_db`` or the ping has no clear return. Where L crosses halfway between the
+   water column and the seabed just after the edge (plus half a bin) is the coarse position,
+   off by up to half a bin depending on where the edge lies in its bin.
+2. Over a flat seabed each bin holds ``∫ G(x) dx`` over the ground ranges ``x = √(r² − h²)`` its
+   slant ranges cover, ``G`` the smooth return per metre of ground (beam, reflectivity, grazing
+   angle). For trial altitudes h within 1.5 bins of the coarse position, ``ln G`` is fitted by
+   a quadratic in x to the ``FIT_BINS`` full bins after h and integrated from nadir to the
+   first of them, and compared with the intensity received before that bin (the partial bin
+   holding h and the water column, the water level subtracted): too early an h predicts more
+   than was received, too late an h less. The altitude is where the difference rises through
+   0 (the last time before it clearly exceeds the water column's noise). This runs on linear
+   intensity averaged over enough pings to reach about 32 looks (at most 9, the brightest of
+   them left out: a fish in the water column); on a clean render it finds the edge to about
+   0.01 bin wherever it lies in its bin, where the coarse position (and a half-rise crossing
+   on linear intensity) are off by up to 0.45 bin.
+3. On a speckled image the fine position is noisy (about ``1/√L`` bin for L looks after
+   averaging) while the coarse one is steady but off by a uniform fraction of a bin (variance
+   1/12): the two are combined with inverse-variance weights, so a clean image keeps the fine
+   position and single-look speckle leans on the coarse one.
 4. Along track, detections further than ``max(3 bins, 5 %)`` from the running median of
    ``smooth_pings`` pings are rejected; the altitude is the running median of the accepted
    detections, interpolated over rejected pings and smoothed by a Gaussian of one ping.
@@ -43,8 +52,9 @@ from scipy import ndimage
 
 from ..errors import SonarRasterError
 from .ground import check_slant
+from .priors import estimate_looks
 
-__all__ = ["BottomTrack", "first_return", "track_bottom", "track_side"]
+__all__ = ["BottomTrack", "blanking_bins", "track_bottom", "track_side"]
 
 #: Bins averaged after a candidate edge.
 WINDOW_BINS = 8
@@ -60,6 +70,19 @@ AGREE_BINS = 2.0
 AVERAGE_PINGS = 5
 #: Gaussian smoothing along range before detection, bins (symmetric: a step stays in place).
 RANGE_SIGMA_BINS = 1.0
+#: Full bins after a trial altitude to which ln G is fitted (quadratic in ground range).
+FIT_BINS = 5
+#: Trial altitudes reach this many bins either side of the coarse position, in steps of
+#: ``SEARCH_STEP`` bins.
+SEARCH_BINS = 1.5
+SEARCH_STEP = 0.05
+#: Looks that the pings averaged for the fine position should reach on a speckled image, and
+#: the most pings averaged (linear intensity, the brightest left out).
+AVERAGE_LOOKS = 32.0
+MAX_AVERAGE_PINGS = 9
+#: Pings fitted at once (bounds the memory of the trial-altitude arrays).
+_CHUNK = 256
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
 _DB_PER_NEPER = 10.0 / math.log(10.0)
 
 
@@ -85,8 +108,11 @@ class BottomTrack:
     contrast_db: np.ndarray
 
 
-def _blanking(image: np.ndarray) -> int:
-    """Leading bins brighter than twice the typical column median (transmit pulse)."""
+def blanking_bins(image: np.ndarray) -> int:
+    """Number of leading bins brighter than twice the typical column median (transmit pulse).
+
+    ``image`` is (pings, bins), linear; at most a twentieth of the bins count as blanking.
+    """
     column = np.median(image, axis=0)
     typical = float(np.median(column))
     limit = max(1, image.shape[1] // 20)
@@ -186,25 +212,187 @@ def _smooth(clean: np.ndarray, size: int) -> np.ndarray:
     return ndimage.gaussian_filter1d(filled, 1.0, mode="nearest")
 
 
-def _detect(
-    slant: np.ndarray, range_bin: float, window: int, min_contrast_db: float
-) -> tuple[np.ndarray, np.ndarray]:
-    image = check_slant(slant, range_bin)
-    if not (isinstance(window, (int, np.integer)) and window >= 2):
-        raise SonarRasterError(f"window must be an integer >= 2 bins, got {window!r}")
-    own = _log_image(image)
-    logs = ndimage.uniform_filter1d(own, AVERAGE_PINGS, axis=0, mode="nearest")
-    lo = _blanking(image)
-    edge, score, water = _edges(logs, lo, window)
-    # validity from the ping's own samples: averaging lends a lost ping its neighbours' edge
-    contrast = _own_contrast(own, lo, edge, window) * _DB_PER_NEPER
+def _coarse(
+    logs: np.ndarray, edge: np.ndarray, score: np.ndarray, water: np.ndarray, window: int
+) -> np.ndarray:
+    """Where L crosses halfway from the water column to the seabed just after the edge, bins."""
     pos = _crossing(logs, edge, water + 0.5 * score, window)
     # again, halfway to the seabed just after the crossing rather than to the window's mean
     # (near nadir the seabed often brightens with range, which would move the crossing out)
     bins = logs.shape[1]
     first = np.clip(np.floor(pos).astype(np.int64), 0, bins - NEAR_BINS)
     near = logs[np.arange(len(pos))[:, None], first[:, None] + np.arange(NEAR_BINS)].mean(axis=1)
-    pos = _crossing(logs, first, 0.5 * (water + np.maximum(near, water)), window)
+    return _crossing(logs, first, 0.5 * (water + np.maximum(near, water)), window)
+
+
+def _averaging(looks: float) -> tuple[int, float]:
+    """Pings to average for the fine position and the looks they give (inf: noise-free)."""
+    if not math.isfinite(looks):
+        return 1, math.inf
+    pings = int(min(MAX_AVERAGE_PINGS, math.ceil(AVERAGE_LOOKS / looks)))
+    return pings, looks * max(pings - 1, 1)
+
+
+def _along_track_mean(slant: np.ndarray, pings: int) -> np.ndarray:
+    """Mean of each bin over up to ``pings`` neighbouring pings without the brightest one.
+
+    Fewer pings at the ends of the image; ``pings < 2`` returns ``slant``. Leaving out the
+    brightest value keeps a single bright ping (a fish in the water column) from spreading.
+    """
+    n = slant.shape[0]
+    if pings < 2 or n < 3:
+        return slant
+    half = pings // 2
+    c = np.concatenate([np.zeros((1, slant.shape[1])), np.cumsum(slant, axis=0)])
+    i = np.arange(n)
+    lo, hi = np.maximum(i - half, 0), np.minimum(i + half + 1, n)
+    brightest = ndimage.maximum_filter1d(slant, 2 * half + 1, axis=0, mode="nearest")
+    return np.maximum(c[hi] - c[lo] - brightest, 0.0) / (hi - lo - 1)[:, None]
+
+
+def _row_median(values: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Median of each row over its ``mask`` entries (rows with at least one)."""
+    count = mask.sum(axis=1)
+    ordered = np.sort(np.where(mask, values, np.inf), axis=1)
+    rows = np.arange(len(values))
+    lower = ordered[rows, np.maximum(count - 1, 0) // 2]
+    return 0.5 * (lower + ordered[rows, count // 2])
+
+
+def _water_level(lin: np.ndarray, lo: int, centre: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mean level and robust deviation of the water column per ping (0 where it has no bins).
+
+    The water column runs from ``lo`` to 3 bins before ``centre``; values above 5 times the
+    ping's median (specks) count as 5 times the median in the mean.
+    """
+    cols = np.arange(lin.shape[1])[None, :]
+    water = (cols >= lo) & (cols < np.floor(centre)[:, None] - 3)
+    ok = water.any(axis=1)
+    level, spread = np.zeros(len(lin)), np.zeros(len(lin))
+    if ok.any():
+        values, water = lin[ok], water[ok]
+        med = _row_median(values, water)
+        clipped = np.where(water, np.minimum(values, 5.0 * med[:, None]), 0.0)
+        level[ok] = clipped.sum(axis=1) / water.sum(axis=1)
+        spread[ok] = 1.4826 * _row_median(np.abs(values - med[:, None]), water)
+    return level, spread
+
+
+def _nadir_residual(
+    seg: np.ndarray, base: np.ndarray, h: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Received minus predicted intensity before the first full bin, per trial altitude.
+
+    ``seg`` (pings, L): water-subtracted intensity of bins ``base .. base + L - 1``; ``h``
+    (pings, trials): trial altitudes in bins. Returns the residual and the number of bins
+    summed into the received intensity.
+    """
+    pings = np.arange(len(seg))[:, None, None]
+    m = np.floor(h).astype(np.int64) + 1  # first full bin
+    rel = m - base[:, None]
+    q = np.arange(FIT_BINS + 1)
+    r = (m[..., None] + q).astype(np.float64)
+    x = np.sqrt(r**2 - h[..., None] ** 2)  # ground range of the bin boundaries, bins
+    values = seg[pings, rel[..., None] + q[:-1]]
+    scale = np.maximum(values.mean(axis=2), 1e-300)
+    g = np.maximum(values, 1e-3 * scale[..., None]) / np.diff(x, axis=2)
+    xm = 0.5 * (x[..., 1:] + x[..., :-1])
+    centre = xm.mean(axis=2, keepdims=True)
+    basis = np.stack([np.ones_like(xm), xm - centre, (xm - centre) ** 2], axis=-1)
+    gram = np.einsum("...nd,...ne->...de", basis, basis)
+    coef = np.linalg.solve(gram, np.einsum("...nd,...n->...d", basis, np.log(g))[..., None])
+    c0, c1, c2 = (coef[..., k, 0][..., None] for k in range(3))
+    x0 = x[..., :1]
+    z = 0.5 * x0 * (_GL_X + 1.0) - centre
+    density = np.exp(np.clip(c0 + c1 * z + c2 * z**2, -700.0, 700.0))
+    predicted = 0.5 * x0[..., 0] * np.sum(_GL_W * density, axis=2)
+    cum = np.concatenate([np.zeros((len(seg), 1)), np.cumsum(seg, axis=1)], axis=1)
+    return cum[pings[..., 0], rel] - predicted, rel
+
+
+def _trials() -> np.ndarray:
+    """Trial altitudes relative to the start of the coarse position's bin, in bins.
+
+    Every ``SEARCH_STEP`` from ``SEARCH_BINS`` before that bin to as many after it, plus a point
+    just before each bin boundary: the residual jumps there, so a crossing that falls on a
+    boundary is found on it rather than interpolated across it.
+    """
+    lo, hi = math.floor(-SEARCH_BINS), math.ceil(1 + SEARCH_BINS)
+    n = round(1 / SEARCH_STEP)
+    grid = np.arange(lo * n, hi * n + 1) / n
+    grid = grid[(grid >= -SEARCH_BINS) & (grid <= 1 + SEARCH_BINS)]
+    edges = np.arange(lo, hi + 1) - 1e-6
+    return np.sort(np.concatenate([grid, edges[(edges > grid[0]) & (edges < grid[-1])]]))
+
+
+def _fine(lin: np.ndarray, lo: int, coarse: np.ndarray) -> np.ndarray:
+    """Edge position per ping (bins from range 0) from the nadir model; NaN where not found.
+
+    Trial altitudes (:func:`_trials`) run from ``SEARCH_BINS`` before ``coarse`` to as many
+    after its bin. The residual
+    of :func:`_nadir_residual` is negative before the edge and grows past the edge's bin after
+    it, while noise in the water column only lifts it a little at bin boundaries: the edge is
+    where it last rises through 0 before it first exceeds 3 deviations of the water column's
+    noise summed over the same bins, interpolated between trials.
+    """
+    pings, bins = lin.shape
+    reach = math.ceil(SEARCH_BINS)
+    width = 2 * reach + 3 + FIT_BINS
+    t = _trials()
+    out = np.full(pings, np.nan)
+    if bins < width + 1:
+        return out
+    level, spread = _water_level(lin, lo, coarse)
+    start = np.floor(coarse)
+    base = np.clip(start.astype(np.int64) - reach - 1, 0, bins - width)
+    lowest, highest = base + 1.0, base + float(width - FIT_BINS - 1)
+    for s in range(0, pings, _CHUNK):
+        rows = slice(s, s + _CHUNK)
+        b = base[rows]
+        seg = lin[np.arange(s, s + len(b))[:, None], b[:, None] + np.arange(width)]
+        seg = seg - level[rows, None]
+        h = np.clip(start[rows, None] + t, lowest[rows, None], highest[rows, None])
+        res, summed = _nadir_residual(seg, b, h)
+        clear = res >= 3.0 * spread[rows, None] * np.sqrt(summed)
+        first = np.where(clear.any(axis=1), np.argmax(clear, axis=1), len(t))
+        negative = (res < 0) & (np.arange(len(t)) < first[:, None])
+        i = np.where(negative.any(axis=1), len(t) - np.argmax(negative[:, ::-1], axis=1), 0)
+        k = np.arange(len(b))
+        j = np.clip(i, 1, len(t) - 1)
+        lo_r, hi_r = res[k, j - 1], res[k, j]
+        frac = np.where(hi_r > lo_r, -lo_r / np.where(hi_r > lo_r, hi_r - lo_r, 1.0), 0.5)
+        pos = h[k, j - 1] + np.clip(frac, 0.0, 1.0) * (h[k, j] - h[k, j - 1])
+        out[rows] = np.where((i > 0) & (first < len(t)), pos, np.nan)
+    return out
+
+
+def _detect(
+    slant: np.ndarray,
+    range_bin: float,
+    window: int,
+    min_contrast_db: float,
+    looks: float | None,
+) -> tuple[np.ndarray, np.ndarray]:
+    image = check_slant(slant, range_bin)
+    if not (isinstance(window, (int, np.integer)) and window >= 2):
+        raise SonarRasterError(f"window must be an integer >= 2 bins, got {window!r}")
+    if looks is None:  # fully developed speckle has at least one look
+        looks = max(estimate_looks(image, np.ones_like(image)), 1.0) if len(image) > 1 else math.inf
+    elif not (isinstance(looks, (int, float)) and looks > 0):
+        raise SonarRasterError(f"looks must be a number > 0 or None, got {looks!r}")
+    own = _log_image(image)
+    logs = ndimage.uniform_filter1d(own, AVERAGE_PINGS, axis=0, mode="nearest")
+    lo = blanking_bins(image)
+    edge, score, water = _edges(logs, lo, window)
+    # validity from the ping's own samples: averaging lends a lost ping its neighbours' edge
+    contrast = _own_contrast(own, lo, edge, window) * _DB_PER_NEPER
+    coarse = _coarse(logs, edge, score, water, window)
+    pings, eff_looks = _averaging(float(looks))
+    lin = _along_track_mean(image, pings)
+    fine = _fine(lin, lo, coarse)
+    # inverse-variance weights: the coarse error is uniform over a bin, the fine one ~ 1/√looks
+    weight = 1.0 / (1.0 + 12.0 / eff_looks)
+    pos = np.where(np.isfinite(fine), coarse + weight * (fine - coarse), coarse)
     raw = np.where(contrast >= min_contrast_db, pos * range_bin, np.nan)
     return raw, contrast
 
@@ -216,6 +404,7 @@ def track_side(
     window: int = WINDOW_BINS,
     min_contrast_db: float = MIN_CONTRAST_DB,
     smooth_pings: int = SMOOTH_PINGS,
+    looks: float | None = None,
 ) -> BottomTrack:
     """Track the bottom in one side of an image.
 
@@ -231,6 +420,10 @@ def track_side(
         Seabed-over-water contrast a return must reach, dB.
     smooth_pings : int
         Running-median window along track, pings.
+    looks : float or None
+        Speckle looks of the image (inf: noise-free); None estimates them from neighbouring
+        pings (:func:`sonar_raster.inversion.priors.estimate_looks`). They set how many pings
+        are averaged for the sub-bin position and how far it is trusted.
 
     Returns
     -------
@@ -241,7 +434,7 @@ def track_side(
     SonarRasterError
         For a bad image, or when no ping has a clear return.
     """
-    raw, contrast = _detect(slant, range_bin, window, min_contrast_db)
+    raw, contrast = _detect(slant, range_bin, window, min_contrast_db, looks)
     size = _odd(smooth_pings)
     clean = _clean(raw, range_bin, size)
     return BottomTrack(_smooth(clean, size), np.isfinite(clean), raw, contrast)
@@ -254,6 +447,7 @@ def track_bottom(
     window: int = WINDOW_BINS,
     min_contrast_db: float = MIN_CONTRAST_DB,
     smooth_pings: int = SMOOTH_PINGS,
+    looks: float | None = None,
 ) -> BottomTrack:
     """Track the bottom using every side (the larger detection where the sides disagree).
 
@@ -263,8 +457,8 @@ def track_bottom(
         E.g. ``SonarImage.sides``; linear intensity, range bins from range 0 outward.
     range_bin : float
         Slant-range bin size, metres.
-    window, min_contrast_db, smooth_pings
-        As for :func:`track_side`.
+    window, min_contrast_db, smooth_pings, looks
+        As for :func:`track_side` (looks None: estimated per side).
 
     Returns
     -------
@@ -276,7 +470,7 @@ def track_bottom(
     size = _odd(smooth_pings)
     raws, cleans, contrasts = [], [], []
     for values in sides.values():
-        raw, contrast = _detect(values, range_bin, window, min_contrast_db)
+        raw, contrast = _detect(values, range_bin, window, min_contrast_db, looks)
         raws.append(raw)
         cleans.append(_clean(raw, range_bin, size))
         contrasts.append(contrast)
@@ -292,15 +486,6 @@ def track_bottom(
     return BottomTrack(
         _smooth(clean, size), np.isfinite(clean), raw_max, np.max(np.stack(contrasts), axis=0)
     )
-
-
-def first_return(slant: np.ndarray, range_bin: float) -> np.ndarray:
-    """Altitude per ping from the first bottom return, shape (pings,), metres.
-
-    The same inputs and output as :func:`sonar_raster.inversion.ground.first_return`, through
-    :func:`track_side`; pings without a clear return take their neighbours' altitude.
-    """
-    return track_side(slant, range_bin).altitude
 
 
 def _odd(size: int) -> int:

@@ -28,15 +28,15 @@ import numpy as np
 
 from ..errors import SonarRasterError
 from . import pyramid
+from .bottom import track_side
 from .em import Problem, Steps, iterate
-from .ground import check_slant, first_return, ground_axis, ground_to_slant, slant_to_ground
+from .ground import check_slant, ground_axis, ground_to_slant, slant_to_ground
 from .model import Geometry
 from .priors import angle_bins, estimate_looks, nearest_lit, profile_median, shadows
 
 __all__ = [
     "BeamProfile",
     "Inversion",
-    "first_return",
     "ground_to_slant",
     "invert",
     "slant_to_ground",
@@ -66,16 +66,6 @@ SUBSAMPLES = 1
 #: of its slopes assumed by the priors on a speckled image (``looks`` of :func:`invert`).
 RELIEF_STD = 0.1
 SLOPE_STD = 0.2
-#: On a speckled image the first return is found on pings averaged in groups of up to
-#: ``BOTTOM_PINGS`` (trimmed mean, see :func:`.ground.first_return`) to reach about
-#: ``BOTTOM_LOOKS`` looks. On the renders of ``tools/bench_inversion.py`` with single-look
-#: speckle the altitude came late by 2.8 ± 1.7 cm per ping over the flat seabed, 3.7 ± 4.7 cm
-#: over the mound and 8.0 ± 6.9 cm over the ripples; with 9 pings 0.0 ± 0.1, 0.8 ± 0.9 and
-#: 2.1 ± 2.7 cm (one-off script). Noise-free images keep one ping: on the noise-free ripples a
-#: 9-ping mean moved five pings' detections from the trough to the faint crest echo 7 cm
-#: nearer, and the Z error from 0.64 to 1.07 × the relief's std.
-BOTTOM_LOOKS = 32.0
-BOTTOM_PINGS = 9
 #: σ of the flat-seabed prior's low-pass (``flat_prior`` of :func:`invert`), as a fraction of
 #: the median altitude (2 m at 10 m).
 FLAT_PRIOR_SCALE = 0.2
@@ -240,10 +230,8 @@ def _check(slant: np.ndarray, range_bin: float, levels: int) -> np.ndarray:
 
 def _altitudes(slant: np.ndarray, range_bin: float, altitude, looks: float | None) -> np.ndarray:
     if altitude is None:
-        pings = 1
-        if looks is not None and math.isfinite(looks):
-            pings = int(min(BOTTOM_PINGS, math.ceil(BOTTOM_LOOKS / looks)))
-        return first_return(slant, range_bin, pings)
+        # the tracker averages pings by the image's looks (estimated if the priors are off)
+        return track_side(slant, range_bin, looks=looks).altitude
     alt = np.broadcast_to(np.asarray(altitude, dtype=np.float64), (slant.shape[0],)).copy()
     if not (np.all(np.isfinite(alt)) and np.all(alt > 0)):
         raise SonarRasterError("altitude must be > 0 metres")

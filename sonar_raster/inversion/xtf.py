@@ -125,7 +125,7 @@ def invert_xtf(
     -------
     XtfInversion
     """
-    from .bottom import _blanking
+    from .bottom import blanking_bins
     from .solver import invert
 
     image, nav = read_xtf(path, pings)
@@ -144,7 +144,7 @@ def invert_xtf(
         slant = image.sides[side].astype(np.float64)
         if amplitude:
             slant *= slant
-        blank = max(blank, _blanking(slant))
+        blank = max(blank, blanking_bins(slant))
         slant[:, :blank] = 0.0  # the transmit pulse is not seabed
         results[side] = invert(
             slant, dr, altitude=alt, ping_spacing=ping_spacing, progress=progress, **options
