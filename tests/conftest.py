@@ -1,7 +1,14 @@
-"""Shared fixtures: one GL renderer per backend for the session, checked for GL errors."""
+"""Shared fixtures: one GL renderer per backend for the session, checked for GL errors.
+
+Tests of real data (XTF recordings, VRML model files) read ``../shared/data`` beside the clone.
+Where it is missing they skip, and the run's header says so; with
+``SONAR_RASTER_REQUIRE_SHARED=1`` (set by ``.ci/run``) a missing folder stops the run instead,
+so CI never passes without testing real data.
+"""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -11,6 +18,21 @@ from sonar_raster.scene import MeshPart, build_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = ROOT.parent / "shared" / "data"
+REQUIRE_SHARED = "SONAR_RASTER_REQUIRE_SHARED"
+
+
+def pytest_report_header(config):
+    if SHARED_DATA.is_dir():
+        return f"real data: {SHARED_DATA}"
+    return f"real data: {SHARED_DATA} is missing; the XTF and model-file tests will skip"
+
+
+def pytest_sessionstart(session):
+    if os.environ.get(REQUIRE_SHARED) == "1" and not SHARED_DATA.is_dir():
+        pytest.exit(
+            f"{REQUIRE_SHARED}=1 but {SHARED_DATA} is missing: clone beside the shared folder",
+            returncode=1,
+        )
 
 
 def _renderer(backend: str):
