@@ -31,7 +31,7 @@ def pyplot(required: bool = True) -> Any:
         import matplotlib
     except ImportError:
         if required:
-            raise SystemExit("matplotlib is needed (a dependency of sonar_raster): pip install -e .") from None
+            raise SystemExit("matplotlib is needed (a dependency): pip install -e .") from None
         print("matplotlib not installed: no plot")
         return None
     matplotlib.use("Agg")
