@@ -11,7 +11,11 @@ from __future__ import annotations
 
 import argparse
 import logging
+import signal
 import sys
+import threading
+import warnings
+from typing import Any
 
 from ..errors import SonarRasterError
 from . import dataset, doctor, invert, render, scenes, track
@@ -50,18 +54,59 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: Warnings of these kinds concern the code, not the user's input: they stay warnings.
+_DEVELOPER_WARNINGS = (DeprecationWarning, PendingDeprecationWarning, FutureWarning, ImportWarning)
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM (``timeout``, batch schedulers, ``kill``), raised where SIGINT would be."""
+
+
+def _on_sigterm(signum: int, frame: object) -> None:
+    raise _Terminated
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Run the command line; returns the exit status."""
+    """Run the command line; returns the exit status.
+
+    SIGTERM is handled like Ctrl-C (temporary files removed, exit 143). A warning raised while a
+    command runs (numeric overflow on absurd input, a library's complaint about a file) stops it
+    with one error line, as bad input does, except warnings about the code itself
+    (deprecations).
+    """
     args = _parser().parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="sonar-raster: %(message)s")
+    previous = _install_sigterm()
     try:
-        return COMMANDS[args.command].run(args)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            for category in _DEVELOPER_WARNINGS:
+                warnings.simplefilter("default", category)
+            return COMMANDS[args.command].run(args)
     except SonarRasterError as exc:
         print(f"sonar-raster: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except Warning as exc:
+        message = " ".join(str(exc).split()) or type(exc).__name__
+        print(f"sonar-raster: error: {message} ({type(exc).__name__}); check the input for "
+              "absurd or non-finite values", file=sys.stderr)  # fmt: skip
+        return EXIT_BAD_INPUT
+    except _Terminated:
+        print("sonar-raster: terminated (SIGTERM); nothing was written", file=sys.stderr)
+        return 128 + signal.SIGTERM
     except KeyboardInterrupt:
         print("sonar-raster: interrupted; nothing was written", file=sys.stderr)
         return 130
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _install_sigterm() -> Any:
+    """Make SIGTERM raise like SIGINT; return the previous handler (None off the main thread)."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(signal.SIGTERM, _on_sigterm)
 
 
 if __name__ == "__main__":

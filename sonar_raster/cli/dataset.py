@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 from typing import Any
 
 from .._checks import cli_positive
@@ -29,7 +30,10 @@ def add_parser(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run ``sonar-raster dataset``; an interrupted run keeps its finished samples."""
+    """Run ``sonar-raster dataset``; an interrupted run keeps its finished samples.
+
+    Exit status 0 when every requested sample is ok, 1 when some failed, 2 when all did.
+    """
     from ..dataset.generate import generate_dataset, load_dataset_config
 
     config = load_dataset_config(args.config)
@@ -52,4 +56,13 @@ def run(args: argparse.Namespace) -> int:
         return 130
     if not args.quiet:
         print(summary.text())
+    failed = len([i for i, _ in summary.failed if i < summary.requested])
+    if failed:
+        every = failed == summary.requested
+        print(
+            f"sonar-raster: {'all ' if every else ''}{failed} of {summary.requested} samples "
+            f"failed (see {Path(args.output) / 'index.jsonl'})",
+            file=sys.stderr,
+        )
+        return 2 if every else 1
     return 0

@@ -132,7 +132,10 @@ def add_parser(sub: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run ``sonar-raster invert``: one side of an image, or both sides of an XTF file."""
     if Path(args.image).suffix.lower() == ".xtf":
+        _check_output_dir(Path(args.output), ("port", "starboard"))
         return _invert_xtf(args)
+    _check_output_dir(Path(args.output), ())
+    _check_image_size(Path(args.image))
     from ..inversion.solver import BeamProfile, invert
     from ..inversion.write import energy_summary, read_side, write_products
 
@@ -170,6 +173,76 @@ def run(args: argparse.Namespace) -> int:
         for path in written:
             print(f"wrote {path}")
     return 0
+
+
+#: Peak bytes per input pixel of an inversion (float64 copies, pyramid, ground-range grids).
+_PIXEL_BYTES = 64
+
+
+def _check_image_size(path: Path) -> None:
+    """Read only the image's header and refuse an image too large to invert on this machine."""
+    import math
+
+    from .._budget import check_memory
+
+    shape: tuple[int, ...] | None = None
+    if path.suffix.lower() == ".npy" and path.is_file():
+        import numpy as np
+
+        try:
+            with open(path, "rb") as fh:
+                version = np.lib.format.read_magic(fh)
+                read = {
+                    (1, 0): np.lib.format.read_array_header_1_0,
+                    (2, 0): np.lib.format.read_array_header_2_0,
+                }.get(version)
+                if read is None:
+                    return
+                shape = read(fh)[0]
+        except (OSError, ValueError):
+            return  # read_side names what is wrong with the file
+    elif path.is_file():
+        import OpenImageIO as oiio
+
+        inp = oiio.ImageInput.open(str(path))
+        if inp is None:
+            return
+        spec = inp.spec()
+        inp.close()
+        shape = (spec.height, spec.width)
+    if shape is None:
+        return
+    pixels = math.prod(int(n) for n in shape[:2])
+    check_memory(
+        pixels * _PIXEL_BYTES,
+        f"inverting an image of {' x '.join(str(n) for n in shape)} pixels",
+        "crop the image (fewer pings or range bins) and invert it in parts",
+    )
+
+
+def _check_output_dir(out: Path, subdirs: tuple[str, ...]) -> None:
+    """Check, before any work, that ``out`` (and ``out/<sub>``) can be made and written."""
+    from ..io.commit import temp_name
+
+    for folder in (out, *(out / sub for sub in subdirs)):
+        if folder.exists() and not folder.is_dir():
+            raise SonarRasterError(
+                f"cannot write into {folder}: it exists and is not a directory; "
+                "give a directory for -o"
+            )
+    existing = out
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if existing.exists() and not existing.is_dir():
+        raise SonarRasterError(f"cannot make {out}: {existing} is not a directory")
+    probe = temp_name(existing / "probe")
+    try:
+        with open(probe, "xb"):
+            pass
+    except OSError as exc:
+        raise SonarRasterError(f"cannot write into {existing}: {exc.strerror or exc}") from None
+    finally:
+        probe.unlink(missing_ok=True)
 
 
 def _invert_xtf(args: argparse.Namespace) -> int:

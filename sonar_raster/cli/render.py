@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -116,6 +118,11 @@ def add_parser(sub: Any) -> None:
         help="PNG display range in dB below the reference level (default: the image's span, "
         "6 to 60 dB)",
     )
+    render.add_argument(
+        "--force",
+        action="store_true",
+        help="render even when the job's memory estimate exceeds this machine's memory",
+    )
     render.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
     add_effect_options(render)
 
@@ -133,6 +140,8 @@ def run(args: argparse.Namespace) -> int:
         sides=_SIDE_CHOICES[args.side] if args.side else None,
     )
     setup = load_scene(args.scene, overrides)
+    _check_in_range(setup)
+    _check_size(args, setup, _streamed(args, setup))
     if _streamed(args, setup):
         return _render_survey(args, setup, outputs)
     image = _render_image(args, setup)
@@ -158,15 +167,106 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _check_outputs(outputs: list[str]) -> list[Path]:
+    """Check every output (and its JSON sidecar) can be written, before any work starts."""
+    from ..io.commit import check_writable
+
     paths = [Path(o) for o in outputs]
     for p in paths:
         if p.suffix.lower() not in _OUTPUT_SUFFIXES:
             raise SonarRasterError(f"output {p}: unknown extension; use .png, .exr or .xtf")
-        if not p.parent.is_dir():
-            raise SonarRasterError(
-                f"cannot write {p}: directory {p.parent} does not exist; create it first"
-            )
+    for p in paths:
+        check_writable(p)
+        if p.suffix.lower() != ".xtf":
+            check_writable(p.with_suffix(".json"))
     return paths
+
+
+def _check_in_range(setup: Any) -> None:
+    """Refuse a track from which nothing in the scene is within the maximum range (black image)."""
+    import numpy as np
+
+    vertices = setup.scene.vertices
+    if len(vertices) == 0:
+        return
+    positions = setup.trajectory.positions
+    nearest = np.clip(positions, vertices.min(axis=0), vertices.max(axis=0))
+    gap = float(np.sqrt(((nearest - positions) ** 2).sum(axis=1)).min())
+    max_range = setup.sonar.max_range
+    if gap <= max_range:
+        return
+    if setup.altitude >= max_range:
+        raise SonarRasterError(
+            f"altitude {setup.altitude:g} m is above the maximum range {max_range:g} m: the "
+            "seabed is out of range and the image would be black; lower --altitude or raise "
+            "--range"
+        )
+    raise SonarRasterError(
+        f"nothing in the scene comes within the maximum range {max_range:g} m of the track "
+        f"(nearest {gap:.4g} m): the image would be black; raise --range or move the track"
+    )
+
+
+#: Peak bytes per image cell (ping x bin x side): the GL accumulator (u64) and its read-back,
+#: the float32 image, its display image and the float64 display mapping.
+_CELL_BYTES = 40
+#: Bytes per texel of the GL targets: RGBA float32 colour, depth, labels.
+_TEXEL_BYTES = 24
+#: Bytes per cell of the tile index over the scene's plane (offsets and their search keys).
+_TILE_BYTES = 16
+
+
+def _check_size(args: argparse.Namespace, setup: Any, streamed: bool) -> None:
+    """Estimate the render's peak memory from its settings; refuse it before allocating."""
+    import math
+
+    from .._budget import check_memory
+
+    sonar, pings = setup.sonar, setup.trajectory.n_pings
+    sides, bins = len(sonar.sides), sonar.n_bins
+    model = _model(args)
+    if model != "raster":
+        per_cell = _CELL_BYTES + 8 * sides  # the model's float64 accumulator
+        check_memory(
+            pings * bins * sides * per_cell,
+            f"the {model} model's image of {pings} pings x {bins} bins x {sides} sides",
+            "lower --pings or --range, or raise --range-bin",
+            force=args.force,
+        )
+        return
+    from ..rendering.gl.raster import MAX_TEXELS, MAX_TEXTURE
+    from ..rendering.survey import STAT_ROWS
+
+    settings = _settings(args)
+    columns = min(MAX_TEXTURE, math.ceil(settings.oversample * bins * 1.2) + 1)
+    texels = min(MAX_TEXELS, columns * min(pings, MAX_TEXTURE) * settings.along_samples)
+    targets = texels * _TEXEL_BYTES
+    if streamed:
+        block = min(pings, args.chunk_pings or 512)
+        stats = min(pings, STAT_ROWS) * bins * sides * 24
+        check_memory(
+            block * bins * sides * _CELL_BYTES + stats + targets,
+            f"rendering blocks of {block} pings x {bins} bins x {sides} sides",
+            "lower --chunk-pings or --range, or raise --range-bin",
+            force=args.force,
+        )
+    else:
+        check_memory(
+            pings * bins * sides * _CELL_BYTES + targets,
+            f"rendering {pings} pings x {bins} bins x {sides} sides",
+            "lower --pings, or use --chunk-pings to stream the track in blocks",
+            force=args.force,
+        )
+    vertices = setup.scene.vertices
+    if len(vertices):
+        tile = 0.25 * (sonar.max_range + 8.0 * sonar.range_bin)
+        span = vertices[:, :2].max(axis=0) - vertices[:, :2].min(axis=0)
+        nx, ny = (float(s) // tile + 1 for s in span)
+        check_memory(
+            nx * ny * _TILE_BYTES,
+            f"the tile index of a scene {span[0]:.4g} m x {span[1]:.4g} m wide",
+            "check the objects' positions (one far from the rest?) or raise --range",
+            force=args.force,
+        )
 
 
 def _model(args: argparse.Namespace) -> str:
@@ -208,21 +308,27 @@ def _render_image(args: argparse.Namespace, setup: Any) -> Any:
 
 
 def _write(args: argparse.Namespace, setup: Any, image: Any, outputs: list[Path]) -> list[Path]:
-    from ..io.images import write_image
+    """Write every output in one all-or-nothing commit: all files replaced, or none."""
+    from ..io.commit import commit
+    from ..io.images import image_jobs
 
-    written = []
+    jobs: dict[Path, Callable[[Path], None]] = {}  # a sidecar named twice: the last one wins
     for path in outputs:
         if path.suffix.lower() == ".xtf":
-            from ..io.xtf import write_xtf
-
-            traj = setup.trajectory
-            altitude = traj.positions[:, 2] - setup.scene.ground_z
-            written.append(write_xtf(path, image, traj, altitude=altitude))
+            jobs[path] = partial(_write_xtf, image=image, setup=setup)
             continue
-        written += write_image(
+        for final, writer in image_jobs(
             image, path, bit_depth=args.bits, dynamic_range_db=args.dynamic_range
-        )
-    return written
+        ):
+            jobs[final] = writer
+    return commit(list(jobs.items()))
+
+
+def _write_xtf(tmp: Path, image: Any, setup: Any) -> None:
+    from ..io.xtf import write_xtf
+
+    traj = setup.trajectory
+    write_xtf(tmp, image, traj, altitude=traj.positions[:, 2] - setup.scene.ground_z)
 
 
 def _streamed(args: argparse.Namespace, setup: Any) -> bool:

@@ -10,6 +10,7 @@ context is current in one thread), so one thread per worker gives one context pe
 from __future__ import annotations
 
 import logging
+import os
 import threading
 import traceback
 from collections.abc import Iterator
@@ -55,8 +56,26 @@ def _configure(backend: str | None, settings: dict[str, Any]) -> None:
     _SETTINGS.update(backend=backend, settings=dict(settings))
 
 
-def _init_pool_worker(backend: str | None, settings: dict[str, Any]) -> None:
-    """Pool initializer: runs in the spawned worker, which makes its GL context here."""
+#: Seconds between a pool worker's checks that its parent is still alive.
+WATCH_PARENT_S = 0.5
+
+
+def _watch_parent(parent: int) -> None:
+    """Exit this worker at once when its parent process is gone (killed by SIGKILL, say)."""
+    import time
+
+    while os.getppid() == parent:
+        time.sleep(WATCH_PARENT_S)
+    os._exit(1)
+
+
+def _init_pool_worker(backend: str | None, settings: dict[str, Any], parent: int) -> None:
+    """Pool initializer: runs in the spawned worker, which makes its GL context here.
+
+    A daemon thread watches the parent: a pool whose parent was killed outright (SIGKILL, an
+    OOM kill) has nobody to send it work or to stop it, so its workers exit by themselves.
+    """
+    threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
     _configure(backend, settings)
     _thread_renderer()
 
@@ -123,7 +142,7 @@ def run_pool(config: DatasetConfig, seed: int, todo: list[int], workers: int) ->
         max_workers=workers,
         mp_context=multiprocessing.get_context("spawn"),
         initializer=_init_pool_worker,
-        initargs=(backend, settings),
+        initargs=(backend, settings, os.getpid()),
     )
     try:
         yield from _windowed(

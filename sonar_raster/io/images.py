@@ -142,6 +142,26 @@ def write_image(
     list of Path
         The files written: the image, then the sidecar if any.
     """
+    return commit(
+        image_jobs(
+            image, path, bit_depth=bit_depth, dynamic_range_db=dynamic_range_db, sidecar=sidecar
+        )
+    )
+
+
+def image_jobs(
+    image: SonarImage,
+    path: str | os.PathLike,
+    *,
+    bit_depth: int = 8,
+    dynamic_range_db: float | None = None,
+    sidecar: bool = True,
+) -> list[tuple[Path, Callable[[Path], None]]]:
+    """The (final path, writer) jobs of :func:`write_image`, for one :func:`.commit` of many.
+
+    Checks the image and the options as :func:`write_image` does and prepares the pixels;
+    nothing is written until the jobs are passed to :func:`~sonar_raster.io.commit.commit`.
+    """
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in SUPPORTED:
@@ -172,7 +192,7 @@ def write_image(
     if sidecar:
         doc = sidecar_document(image, mapping)
         jobs.append((path.with_suffix(".json"), lambda tmp: write_json(tmp, doc)))
-    return commit(jobs)
+    return jobs
 
 
 def read_pixels(path: str | os.PathLike) -> tuple[np.ndarray, oiio.ImageSpec]:

@@ -7,7 +7,9 @@ as scanlines (and to an XTF, ping records, when asked), so peak memory follows t
 not the track. A PNG is made afterwards
 from the finished EXR, block by block again, with its display mapping taken from an even
 subsample of the pings. Every output is written under a temporary name and renamed into place
-only when all are complete.
+only when all are complete (:func:`~sonar_raster.io.commit.install`, which restores the old
+files if a rename fails). Temporary names carry the process id, so a run killed by SIGKILL
+leaves files that the next run of the same target removes.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ import OpenImageIO as oiio
 from ..errors import SonarRasterError
 from ..image import SonarImage
 from ..io import images as sio
-from ..io.commit import check_directory, temp_name, write_json
+from ..io.commit import check_writable, install, sweep_stale, temp_name, write_json
 from ..scene import Scene
 from ..sonar import SIDES, Sonar
 from ..trajectory import Trajectory
@@ -127,12 +129,16 @@ def render_survey(
     for path in paths:
         if path.suffix.lower() not in (*sio.SUPPORTED, ".xtf"):
             raise SonarRasterError(f"cannot write {path}: use .exr, .png or .xtf")
-        check_directory(path)
+        check_writable(path)
+        if path.suffix.lower() != ".xtf":
+            check_writable(path.with_suffix(".json"))
     xtf_final = next((p for p in paths if p.suffix.lower() == ".xtf"), None)
     if bit_depth not in (8, 16):
         raise SonarRasterError(f"PNG bit depth must be 8 or 16, got {bit_depth!r}")
     exr_final = next((p for p in paths if p.suffix.lower() == ".exr"), None)
-    exr_tmp = temp_name(exr_final or paths[0].with_suffix(".exr"))
+    exr_base = exr_final or paths[0].with_suffix(".exr")
+    sweep_stale(exr_base)  # a killed run's scanline file of the same target
+    exr_tmp = temp_name(exr_base)
     xtf_tmp = temp_name(xtf_final) if xtf_final else None
     temps: list[Path] = [exr_tmp] + ([xtf_tmp] if xtf_tmp else [])
     try:
@@ -168,8 +174,7 @@ def render_survey(
             doc["shape"] = [trajectory.n_pings, sonar.n_bins]  # type: ignore[index]
             write_json(sidecar, doc)
             jobs.append((sidecar, path.with_suffix(".json")))
-        for tmp, final in jobs:
-            os.replace(tmp, final)
+        install(jobs)  # every output replaced, or none
     except OSError as exc:
         raise SonarRasterError(f"cannot write {paths[0]}: {exc.strerror or exc}") from None
     finally:

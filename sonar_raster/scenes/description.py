@@ -8,8 +8,11 @@ documented in docs/scene-files.md.
 
 from __future__ import annotations
 
+import errno
 import logging
 import math
+import os
+import stat
 import sys
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -17,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from .._checks import positive
 from ..errors import SonarRasterError
 from ..scene import MeshPart, Scene, build_scene
 from ..sonar import SIDES, BeamPattern, Sonar
@@ -80,8 +84,7 @@ def load_scene_file(path: str | Path, overrides: Overrides | None = None) -> Sce
     """
     path = Path(path)
     ov = overrides or Overrides()
-    if not path.is_file():
-        raise SonarRasterError(f"scene file {path} does not exist")
+    _check_regular_file(path)
     suffix = path.suffix.lower()
     if suffix == ".toml":
         return _from_description(path, ov)
@@ -105,11 +108,46 @@ def load_scene(source: str | Path, overrides: Overrides | None = None) -> SceneS
         Values that replace the scene's sonar and trajectory settings.
     """
     path = Path(source)
-    if not (path.exists() or path.suffix):
+    if not (path.exists() or path.is_symlink() or path.suffix):
         from .bundled import bundled_scene
 
         path = bundled_scene(str(source))
     return load_scene_file(path, overrides)
+
+
+def _check_regular_file(path: Path) -> None:
+    """Raise naming what ``path`` is when it is not a readable regular file."""
+    try:
+        mode = path.stat().st_mode
+    except FileNotFoundError:
+        if path.is_symlink():
+            raise SonarRasterError(
+                f"scene file {path} is a broken symbolic link (to {os.readlink(path)})"
+            ) from None
+        raise SonarRasterError(f"scene file {path} does not exist") from None
+    except OSError as exc:  # ELOOP, EACCES, ENAMETOOLONG, ...
+        what = "a symbolic link loop" if exc.errno == errno.ELOOP else exc.strerror or str(exc)
+        raise SonarRasterError(f"cannot read scene file {path}: {what}") from None
+    if stat.S_ISDIR(mode):
+        raise SonarRasterError(f"scene {path} is a directory; give a .toml or model file in it")
+    if not stat.S_ISREG(mode):
+        kind = "a FIFO (named pipe)" if stat.S_ISFIFO(mode) else "not a regular file"
+        raise SonarRasterError(f"scene {path} is {kind}; give a .toml or model file")
+
+
+#: Peak bytes per ping of a straight track (poses, attitude and their temporaries).
+TRACK_BYTES_PER_PING = 128
+
+
+def _check_track_size(pings: int) -> None:
+    """Refuse a track whose poses alone would not fit in memory, before making it."""
+    from .._budget import check_memory
+
+    check_memory(
+        pings * TRACK_BYTES_PER_PING,
+        f"a track of {pings} pings",
+        "lower 'pings' in [trajectory] or --pings",
+    )
 
 
 # -- tables ------------------------------------------------------------------------------------
@@ -321,15 +359,16 @@ def _primitive(spec: dict, where: str) -> list[MeshPart]:
     number = (int, float)
     if kind == "box":
         size = _vector(_take(spec, "size", [1.0, 1.0, 1.0], list, where), (3,), "size", where)
+        if np.any(size <= 0):
+            raise SonarRasterError(f"{where}: 'size' must be > 0 in every axis, got {list(size)}")
         mesh = trimesh.creation.box(extents=size)
     elif kind == "cylinder":
-        radius = float(_take(spec, "radius", 0.5, number, where))
-        length = float(_take(spec, "length", 2.0, number, where))
+        radius = positive(f"{where}: 'radius'", _take(spec, "radius", 0.5, number, where))
+        length = positive(f"{where}: 'length'", _take(spec, "length", 2.0, number, where))
         mesh = trimesh.creation.cylinder(radius=radius, height=length, sections=64)
     elif kind == "sphere":
-        mesh = trimesh.creation.icosphere(
-            subdivisions=4, radius=float(_take(spec, "radius", 0.5, number, where))
-        )
+        radius = positive(f"{where}: 'radius'", _take(spec, "radius", 0.5, number, where))
+        mesh = trimesh.creation.icosphere(subdivisions=4, radius=radius)
     else:
         raise SonarRasterError(f"{where}: unknown primitive {kind!r}; use box, cylinder or sphere")
     return [MeshPart(np.asarray(mesh.vertices), np.asarray(mesh.faces), 0.9, str(kind))]
@@ -417,6 +456,7 @@ def _trajectory(
     if not (math.isfinite(altitude) and altitude > 0):
         raise SonarRasterError(f"altitude must be > 0 metres, got {altitude}")
     z = ground_z + altitude
+    _check_track_size(pings)
     line = Trajectory.straight((start[0], start[1], z), heading, spacing, pings)
     # Crab turns the vehicle (and its fans) off the course; pitch tilts the fans forward.
     attitude = np.radians([crab, roll, pitch])
@@ -471,6 +511,7 @@ def _from_model(path: Path, ov: Overrides) -> SceneSetup:
     size = max(float(np.ptp(corners, axis=0).max()), 0.1)
     length = max(20.0, 6.0 * size)
     pings = ov.pings if ov.pings is not None else 200
+    _check_track_size(pings)
     seabed = make_seabed(
         "flat", size=(2.2 * sonar.max_range, length + 20.0), center=(0.0, 0.0), depth=0.0
     )
