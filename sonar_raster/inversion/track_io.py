@@ -7,6 +7,7 @@ tracks with it.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -53,18 +54,25 @@ def summary_lines(track: BottomTrack, recorded: np.ndarray, range_bin: float) ->
     return lines
 
 
-def write_track_csv(path: Path, track: BottomTrack, recorded: np.ndarray) -> None:
+def write_track_csv(
+    path: Path, track: BottomTrack, recorded: np.ndarray, pings: Sequence[int] | None = None
+) -> None:
     """Write a track as CSV (:data:`TRACK_CSV_HEADER`) to a new file ``path``.
 
     The file must not exist (it is opened with mode "x"): a writer for
     :func:`sonar_raster.io.commit.commit`, which gives it a temporary name. Metres to 0.1 mm;
-    ``recorded`` is the file's altitude per ping (NaN: none, an empty cell).
+    ``recorded`` is the file's altitude per ping (NaN: none, an empty cell). ``pings`` numbers
+    the rows (e.g. the XTF ping indices of ``read_xtf``'s ``metadata["ping_indices"]``, which
+    leave gaps where bad pings were skipped); default 0, 1, 2...
     """
+    numbers = range(len(track.altitude)) if pings is None else pings
+    if len(numbers) != len(track.altitude):
+        raise ValueError(f"{len(numbers)} ping numbers for {len(track.altitude)} pings")
     with open(path, "x", encoding="utf-8") as fh:
         fh.write(TRACK_CSV_HEADER + "\n")
-        for i in range(len(track.altitude)):
+        for i, ping in enumerate(numbers):
             fh.write(
-                f"{i},{track.altitude[i]:.4f},{int(track.valid[i])},{_num(track.raw[i])},"
+                f"{ping},{track.altitude[i]:.4f},{int(track.valid[i])},{_num(track.raw[i])},"
                 f"{_num(track.contrast_db[i])},{_num(recorded[i])}\n"
             )
 

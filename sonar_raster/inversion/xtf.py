@@ -19,6 +19,10 @@ each:
   cos p is 0.60 m above the file's altitude in the median, against 0.73 m without.)
 - Between consecutive pings the cells are interpolated linearly (positions and values) so
   the raster has no along-track gaps; each pixel takes the mean of the samples inside it.
+  The raster's extent is that of the track after :func:`sonar_raster.io.xtf.track_jumps`
+  (positions that jump off the track are interpolated), so one bad fix cannot stretch it; a
+  raster above :data:`MAX_GRID_CELLS` pixels is refused, and the along-track interpolation is
+  thinned to stay within :data:`MAX_GRID_SAMPLES` samples.
 - CRS: files in degrees are projected to the UTM zone of their first fix (WGS 84, EPSG
   326xx/327xx, via rasterio/PROJ); files in metres keep their coordinates with no CRS (XTF
   does not say which projection).
@@ -30,6 +34,7 @@ each:
 
 from __future__ import annotations
 
+import logging
 import math
 import warnings
 from collections.abc import Callable
@@ -41,8 +46,15 @@ import numpy as np
 
 from ..errors import SonarRasterError
 from ..image import SonarImage
-from ..io.xtf import XtfNavigation, read_xtf
+from ..io.xtf import XtfNavigation, read_xtf, track_jumps
 from .bottom import BottomTrack, track_bottom
+
+log = logging.getLogger(__name__)
+
+#: Most pixels :func:`grid` makes (about 40 bytes each while gridding, 4 per layer after).
+MAX_GRID_CELLS = 100_000_000
+#: Most samples gridded after the along-track interpolation (about 60 bytes each).
+MAX_GRID_SAMPLES = 30_000_000
 
 GEOTIFFS = {
     "elevation.tif": "seabed elevation, metres (relative to the sea surface when the file "
@@ -201,34 +213,40 @@ def grid(
     ----------
     samples : list of (east, north, layers)
         Per side: positions, each (pings, cells), and layer name -> values (pings, cells).
+        Samples at non-finite positions are left out.
     pixel : float
         Pixel size, metres.
     crs : str or None
         CRS of the positions.
     along_factor : int
-        Samples per ping interval after linear interpolation along track.
+        Samples per ping interval after linear interpolation along track; lowered (with a
+        logged note) to keep the samples within :data:`MAX_GRID_SAMPLES`.
+
+    Raises
+    ------
+    SonarRasterError
+        When the raster would have more than :data:`MAX_GRID_CELLS` pixels, there are more
+        than :data:`MAX_GRID_SAMPLES` samples before interpolation, or no sample has a finite
+        position.
     """
+    if not (math.isfinite(pixel) and pixel > 0):
+        raise SonarRasterError(f"the pixel size must be a positive number of metres, got {pixel}")
+    west, top, rows, cols = _extent(samples, pixel)
+    factor = _affordable_factor(samples, along_factor)
     names = list(samples[0][2])
-    es: list[np.ndarray] = []
-    ns: list[np.ndarray] = []
-    vals: dict[str, list[np.ndarray]] = {k: [] for k in names}
-    for e, n, layers in samples:
-        es.append(_densify(e, along_factor).ravel())
-        ns.append(_densify(n, along_factor).ravel())
-        for k in names:
-            vals[k].append(_densify(layers[k], along_factor).ravel())
-    east, north = np.concatenate(es), np.concatenate(ns)
-    west, top = math.floor(east.min() / pixel) * pixel, math.ceil(north.max() / pixel) * pixel
-    cols = int((east.max() - west) // pixel) + 1
-    rows = int((top - north.min()) // pixel) + 1
-    if rows * cols > 200_000_000:
-        raise SonarRasterError(f"a {rows} x {cols} raster is too large; use a larger pixel")
-    flat = ((top - north) // pixel).astype(np.int64) * cols + ((east - west) // pixel).astype(
-        np.int64
-    )
+
+    def dense(pick) -> np.ndarray:
+        return np.concatenate([_densify(pick(s), factor).ravel() for s in samples])
+
+    east, north = dense(lambda s: s[0]), dense(lambda s: s[1])
+    placed = np.isfinite(east) & np.isfinite(north)
+    flat = ((top - north[placed]) // pixel).astype(np.int64) * cols + (
+        (east[placed] - west) // pixel
+    ).astype(np.int64)
+    del east, north
     layers = {}
     for k in names:
-        v = np.concatenate(vals[k])
+        v = dense(lambda s, k=k: s[2][k])[placed]
         ok = np.isfinite(v)
         total = np.bincount(flat[ok], weights=v[ok], minlength=rows * cols)
         count = np.bincount(flat[ok], minlength=rows * cols)
@@ -236,6 +254,53 @@ def grid(
             mean = np.where(count > 0, total / np.maximum(count, 1), np.nan)
         layers[k] = mean.reshape(rows, cols).astype(np.float32)
     return Raster(layers, west, top, pixel, crs)
+
+
+def _extent(
+    samples: list[tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]], pixel: float
+) -> tuple[float, float, int, int]:
+    """West and north edges, rows and columns of the raster; refused beyond MAX_GRID_CELLS."""
+    lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
+    for e, n, _ in samples:
+        placed = np.isfinite(e) & np.isfinite(n)
+        if placed.any():
+            for axis, v in enumerate((e[placed], n[placed])):
+                lo[axis], hi[axis] = min(lo[axis], v.min()), max(hi[axis], v.max())
+    if not np.all(np.isfinite(np.concatenate([lo, hi]))):
+        raise SonarRasterError("no sample has a finite ground position: nothing to grid")
+    west, top = math.floor(lo[0] / pixel) * pixel, math.ceil(hi[1] / pixel) * pixel
+    cols = int((hi[0] - west) // pixel) + 1
+    rows = int((top - lo[1]) // pixel) + 1
+    if rows * cols > MAX_GRID_CELLS:
+        raise SonarRasterError(
+            f"the georeferenced raster would be {rows} x {cols} pixels of {pixel:.3g} m "
+            f"({rows * cols * 40 / 2**30:.0f} GiB to grid) over {hi[0] - lo[0]:.0f} x "
+            f"{hi[1] - lo[1]:.0f} m; grid fewer pings (--pings A:B) or larger pixels"
+        )
+    return west, top, rows, cols
+
+
+def _affordable_factor(
+    samples: list[tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]], factor: int
+) -> int:
+    """``factor``, lowered so the interpolated samples stay within MAX_GRID_SAMPLES."""
+    pings, cells = max(len(e) for e, _, _ in samples), sum(e.shape[1] for e, _, _ in samples)
+    if pings * cells > MAX_GRID_SAMPLES:
+        raise SonarRasterError(
+            f"{pings} pings of {cells} ground cells are {pings * cells} samples to grid, more "
+            f"than {MAX_GRID_SAMPLES}; grid fewer pings (--pings A:B)"
+        )
+    intervals = max(pings - 1, 1)
+    fit = max(1, (MAX_GRID_SAMPLES // max(cells, 1) - 1) // intervals)
+    if factor > fit:
+        log.warning(
+            "georeferencing: %d samples per ping interval instead of %d (memory); the rasters "
+            "may show gaps between pings (grid fewer pings for full coverage)",
+            fit,
+            factor,
+        )
+        return fit
+    return max(1, factor)
 
 
 def georeference(result: XtfInversion, pixel: float | None = None) -> Raster:
@@ -251,24 +316,24 @@ def georeference(result: XtfInversion, pixel: float | None = None) -> Raster:
     Raises
     ------
     SonarRasterError
-        When the file has no navigation.
+        When the file has no navigation, or the raster would be too large (see :func:`grid`).
     """
     nav = result.navigation
     if not nav.valid.any():
         raise SonarRasterError("the file has no navigation: no GeoTIFF can be placed")
-    east, north = nav.projected()
+    east, north = _robust_track(nav)
     heading = nav.filled_heading()
-    idx = np.flatnonzero(nav.valid)
+    pitch = nav.filled("pitch")
+    ok = nav.valid & np.isfinite(nav.depth)
     k = np.arange(len(nav.valid))
-    pitch = np.interp(k, idx, nav.pitch[nav.valid])
-    depth = np.interp(k, idx, nav.depth[nav.valid])
+    depth = np.interp(k, np.flatnonzero(ok), nav.depth[ok]) if ok.any() else nav.filled("depth")
     has_depth = bool(np.any(depth > 0))
     spacing = nav.along_track_spacing()
     first = next(iter(result.sides.values()))
     dx = float(first.x[1] - first.x[0])
     px = float(pixel or max(dx, 0.5 * spacing if math.isfinite(spacing) else dx))
     if nav.valid.sum() >= 2:  # samples at most half a pixel apart along track
-        step = float(np.max(np.hypot(np.diff(east), np.diff(north))))
+        step = float(np.max(np.hypot(np.diff(east), np.diff(north)), initial=0.0))
         factor = max(1, int(math.ceil(2.0 * step / px)))
     else:
         factor = 1
@@ -279,6 +344,16 @@ def georeference(result: XtfInversion, pixel: float | None = None) -> Raster:
         layers = {"elevation": z, "reflectivity": inv.reflectivity, "mosaic": inv.ground}
         samples.append((e, n, layers))
     return grid(samples, px, nav.crs, factor)
+
+
+def _robust_track(nav: XtfNavigation) -> tuple[np.ndarray, np.ndarray]:
+    """Projected positions per ping, those that jump off the track interpolated."""
+    east, north = nav.projected()
+    jumps = track_jumps(east, north, nav.time)
+    if jumps.any() and not jumps.all():
+        k, good = np.arange(len(east)), np.flatnonzero(~jumps)
+        east, north = np.interp(k, good, east[good]), np.interp(k, good, north[good])
+    return east, north
 
 
 def _write_geotiff(tmp: Path, values: np.ndarray, raster: Raster, description: str) -> None:

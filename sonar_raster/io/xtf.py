@@ -20,14 +20,29 @@ Conventions (checked on the OpenSidescan sample and by the round-trip tests):
   whose coordinates are both 0 has no navigation. Heading is the compass heading in degrees;
   roll is positive starboard down; the altitude is ``SensorPrimaryAltitude`` (0 = not known);
   the sensor depth is ``SensorDepth`` (positive down), so the sensor's z is ``-depth``.
+
+Field recordings have glitches; a ping is skipped, not the file refused, when its packet is
+framed correctly (marker and length) but a field is impossible: a date or time of day that
+does not exist, ``|Weight|`` above :data:`MAX_WEIGHT`, sample counts that do not fit the packet,
+non-finite samples or sample spacing, or (in :func:`read_xtf`) a few isolated pings whose
+sides, sample count or spacing differ from the rest. Fixes outside the globe, and fixes further
+from the running median of their neighbours than :data:`MAX_SPEED` allows (a GPS jump), are
+rejected and interpolated like pings without navigation; so are heading spikes beyond
+:data:`MAX_TURN_RATE` and the few times out of order (a clock reset to a real date).
+:func:`read_xtf` logs one warning line saying what it skipped or repaired and lists it in the
+image's metadata; only a broken packet frame (no marker, truncated) or a file with no usable
+ping is an error.
 """
 
 from __future__ import annotations
 
+import bisect
 import ctypes
-import io
+import datetime
+import logging
 import math
 import os
+from collections import Counter
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -40,7 +55,12 @@ from ..image import SonarImage
 from ..sonar import Sonar
 from ..trajectory import Trajectory
 
-__all__ = ["XtfNavigation", "XtfPing", "XtfReader", "iter_pings", "read_xtf", "write_xtf"]
+__all__ = [
+    "SkippedPing", "XtfNavigation", "XtfPing", "XtfReader", "iter_pings", "read_xtf",
+    "track_jumps", "write_xtf",
+]  # fmt: skip
+
+log = logging.getLogger(__name__)
 
 #: ``FileFormat`` byte of every XTF file.
 XTF_FILE_FORMAT = 0x7B
@@ -51,6 +71,30 @@ _PORT, _STARBOARD = 1, 2
 _NAV_DEGREES = 3
 _FILE_HEADER_BYTES = 1024
 _SAMPLE_FORMATS = {"float32": (5, 4, np.float32), "uint16": (3, 2, np.uint16)}
+#: Sample type by ``ChanInfo.SampleFormat``, else by ``BytesPerSample`` (as pyxtf reads them).
+_FORMAT_DTYPES = {2: np.uint32, 3: np.uint16, 5: np.float32, 8: np.uint8}
+_SIZE_DTYPES = {1: np.uint8, 2: np.uint16, 4: np.uint32, 8: np.uint64}
+_EPOCH_DAY = datetime.date(1970, 1, 1).toordinal()
+
+#: Largest ``|Weight|`` read: samples are scaled by ``2 ** -Weight``, and beyond this a float32
+#: sample under- or overflows (a corrupt field, not a gain).
+MAX_WEIGHT = 64
+#: Navigation filter: a fix further from the running median of its :data:`NAV_WINDOW`
+#: neighbours on each side than ``MAX_SPEED`` (m/s) times the window's time span plus
+#: ``FIX_NOISE`` (m) is a jump.
+MAX_SPEED = 10.0
+FIX_NOISE = 10.0
+#: A heading further from the median of its neighbours than ``MAX_TURN_RATE`` (degrees per
+#: second) times the window's time span plus ``HEADING_NOISE`` (degrees) is a spike.
+MAX_TURN_RATE = 20.0
+HEADING_NOISE = 30.0
+NAV_WINDOW = 10
+#: Pings whose layout (sides, sample count, spacing) differs from the file's usual one are
+#: glitches, skipped, in runs of at most this many (and at most a tenth of the pings read);
+#: longer runs mean the sonar's setting changed.
+GLITCH_RUN = 3
+#: Plausible depth and altitude, metres (deeper than any ocean is a corrupt field).
+_MAX_DEPTH = 12000.0
 
 
 def _pyxtf() -> Any:
@@ -82,11 +126,13 @@ class XtfPing:
     x, y : float
         Longitude, latitude (degrees) or easting, northing (metres); NaN without navigation.
     heading, roll, pitch : float
-        Compass heading, roll (starboard down) and pitch (nose up), radians.
+        Compass heading, roll (starboard down) and pitch (nose up), radians; NaN when the field
+        holds no angle (not finite, beyond ±720°).
     altitude : float
-        Altitude above the seabed from the file, metres; NaN when the file has none (0).
+        Altitude above the seabed from the file, metres; NaN when the file has none (0) or the
+        field is not an altitude.
     depth : float
-        Sensor depth below the surface, metres.
+        Sensor depth below the surface, metres; NaN when the field is not a depth.
     """
 
     index: int
@@ -109,12 +155,42 @@ class XtfPing:
         return math.isfinite(self.x) and math.isfinite(self.y)
 
 
+@dataclass(frozen=True)
+class SkippedPing:
+    """A side-scan ping left out because a field of its packet is impossible.
+
+    Attributes
+    ----------
+    index : int
+        Position among the file's sonar pings, from 0 (skipped pings keep their place, so the
+        indices of the others do not move).
+    kind : str
+        What was wrong: "time", "Weight", "samples", "spacing", "packet" or "layout".
+    detail : str
+        The offending value, e.g. "date 2013-09-40".
+    """
+
+    index: int
+    kind: str
+    detail: str
+
+
+class _BadPacket(Exception):
+    """A correctly framed sonar packet that is not a usable ping (``kind``, ``detail``)."""
+
+    def __init__(self, kind: str, detail: str) -> None:
+        super().__init__(detail)
+        self.kind, self.detail = kind, detail
+
+
 class XtfReader:
     """Stream the side-scan pings of an XTF file, one at a time.
 
     Use as a context manager; iterating yields :class:`XtfPing` in file order. The file header
     is checked on opening and each packet as it is read, so a wrong, empty or truncated file
-    raises :class:`SonarRasterError` naming the file and the byte offset.
+    raises :class:`SonarRasterError` naming the file and the byte offset. A packet that is
+    framed correctly but holds an impossible field is skipped and listed in :attr:`skipped`;
+    a file none of whose pings is usable raises.
 
     Parameters
     ----------
@@ -133,6 +209,10 @@ class XtfReader:
         Centre frequency of the first side-scan channel, Hz (0 when the file does not say).
     tilt_deg : float
         Depression of the first side-scan channel's beam axis, degrees (0 when not given).
+    skipped : list of SkippedPing
+        Pings skipped so far (packets framed correctly but with an impossible field).
+    count : int
+        Side-scan pings read so far, skipped ones included.
     """
 
     def __init__(self, path: str | os.PathLike) -> None:
@@ -141,15 +221,18 @@ class XtfReader:
         self._fh: BinaryIO | None = open(self.path, "rb")  # noqa: SIM115 - closed by close()
         try:
             self.header = self._read_header()
+            self.channels = _side_channels(self.header, self.path)
         except BaseException:
             self.close()
             raise
         info = self.header.ChanInfo
-        self.channels = _side_channels(self.header, self.path)
         self.units = "degrees" if self.header.NavUnits == _NAV_DEGREES else "metres"
         first = info[next(iter(self.channels.values()))]
-        self.frequency_hz = float(first.Frequency) * 1e3
-        self.tilt_deg = float(first.TiltAngle)
+        frequency, tilt = float(first.Frequency), float(first.TiltAngle)
+        self.frequency_hz = frequency * 1e3 if 0.0 < frequency < 1e6 else 0.0
+        self.tilt_deg = tilt if 0.0 < tilt < 90.0 else 0.0
+        self.skipped: list[SkippedPing] = []
+        self.count = 0
 
     def _read_header(self) -> Any:
         pyxtf = _pyxtf()
@@ -183,12 +266,21 @@ class XtfReader:
             raise SonarRasterError(f"{self.path}: the reader is closed")
         index = 0
         for offset, raw in self._packets():
-            ping = self._ping(raw, offset, index)
+            try:
+                ping = self._ping(raw, index)
+            except _BadPacket as bad:
+                self.skipped.append(SkippedPing(index, bad.kind, f"{bad.detail} at byte {offset}"))
+                index = self.count = index + 1
+                continue
             if ping is not None:
                 yield ping
-                index += 1
+                index = self.count = index + 1
         if index == 0:
             raise SonarRasterError(f"{self.path} has no side-scan pings")
+        if len(self.skipped) == index:
+            raise SonarRasterError(
+                f"{self.path} has no usable side-scan ping: {skip_summary(self.skipped, index)}"
+            )
 
     def _packets(self) -> Iterator[tuple[int, bytes]]:
         """(offset, bytes) of each side-scan packet; others are skipped unread."""
@@ -224,39 +316,64 @@ class XtfReader:
             f"{self._size - offset} are left"
         )
 
-    def _ping(self, raw: bytes, offset: int, index: int) -> XtfPing | None:
-        pyxtf = _pyxtf()
-        try:
-            ping = pyxtf.XTFPingHeader.create_from_buffer(io.BytesIO(raw), self.header)
-        except (RuntimeError, ValueError, IndexError, KeyError) as exc:
-            raise SonarRasterError(
-                f"{self.path}: bad sonar packet at byte {offset}: {exc}"
-            ) from None
+    def _ping(self, raw: bytes, index: int) -> XtfPing | None:
+        """The ping of a sonar packet, None without side-scan channels; _BadPacket if unusable."""
+        ping, channels = self._decode(raw)
         sides: dict[str, np.ndarray] = {}
         spacing: dict[str, float] = {}
         speed = 0.0
-        for chan, data in zip(ping.ping_chan_headers, ping.data, strict=True):
+        for chan, data in channels:
             side = self._side_of(int(chan.ChannelNumber))
             if side is None or side in sides:
                 continue
-            if len(data) != chan.NumSamples and chan.NumSamples > 0:
-                raise SonarRasterError(
-                    f"{self.path}: ping at byte {offset} has {len(data)} of {chan.NumSamples} "
-                    "samples (truncated or corrupt)"
-                )
+            if (len(data) != chan.NumSamples and chan.NumSamples > 0) or len(data) == 0:
+                raise _BadPacket("samples", f"{len(data)} of {chan.NumSamples} samples")
             speed = _sound_speed(float(ping.SoundVelocity), chan)
-            values = np.asarray(data, dtype=np.float32) * np.float32(2.0 ** -int(chan.Weight))
+            values = _scaled(data, int(chan.Weight))
             sides[side] = values[::-1].copy() if side == "port" else values
             spacing[side] = _sample_spacing(chan, len(data), speed)
         if not sides:
             return None
         bins = list(spacing.values())
-        if min(bins) <= 0 or max(bins) > min(bins) * (1 + 1e-5):
-            raise SonarRasterError(
-                f"{self.path}: ping {index} has no usable sample spacing (slant range "
-                "and recording time are 0, or the sides differ)"
-            )
+        if not all(math.isfinite(b) and b > 0 for b in bins) or max(bins) > min(bins) * (1 + 1e-5):
+            shown = " and ".join(f"{b:.4g}" for b in bins)
+            raise _BadPacket("spacing", f"sample spacing {shown} m")
         return _make_ping(ping, index, sides, bins[0], speed)
+
+    def _decode(self, raw: bytes) -> tuple[Any, list[tuple[Any, np.ndarray]]]:
+        """Ping header and (channel header, samples) pairs, laid out as pyxtf reads them."""
+        pyxtf = _pyxtf()
+        head = ctypes.sizeof(pyxtf.XTFPingHeader)
+        chan_size = ctypes.sizeof(pyxtf.XTFPingChanHeader)
+        if len(raw) < head:
+            raise _BadPacket("packet", f"{len(raw)} bytes, less than a ping header ({head})")
+        ping = pyxtf.XTFPingHeader.from_buffer_copy(raw)
+        info = self.header.sonar_info  # channel k of a packet is described by sonar_info[k]
+        wanted = set(self.channels.values())
+        channels: list[tuple[Any, np.ndarray]] = []
+        pos = head
+        for k in range(min(int(ping.NumChansToFollow), len(info))):
+            if pos + chan_size > len(raw):
+                raise _BadPacket("samples", f"channel {k} starts past the packet's end")
+            chan = pyxtf.XTFPingChanHeader.from_buffer_copy(raw, pos)
+            pos += chan_size
+            count = int(chan.NumSamples) or int(info[k].Reserved)
+            size = int(info[k].BytesPerSample)
+            kind = _FORMAT_DTYPES.get(int(info[k].SampleFormat)) or _SIZE_DTYPES.get(size)
+            dtype = np.dtype(kind or np.uint8)
+            if kind is None or size == 0 or (count * size) % dtype.itemsize:
+                raise _BadPacket("samples", f"sample format {info[k].SampleFormat} of {size} bytes")
+            if pos + count * size > len(raw):
+                raise _BadPacket(
+                    "samples", f"{count} samples of channel {k} do not fit the packet "
+                    f"({len(raw) - pos} bytes are left)"
+                )  # fmt: skip
+            data = np.frombuffer(raw, dtype, count * size // dtype.itemsize, pos)
+            pos += count * size
+            channels.append((chan, data))
+            if wanted <= {int(c.ChannelNumber) for c, _ in channels}:
+                break  # both sides read; later channels are not used
+        return ping, channels
 
     def _side_of(self, channel_number: int) -> str | None:
         for side, k in self.channels.items():
@@ -311,35 +428,112 @@ def _sample_spacing(chan: Any, samples: int, speed: float) -> float:
     return float(chan.TimeDuration) * speed / 2.0 / samples
 
 
+def _scaled(data: np.ndarray, weight: int) -> np.ndarray:
+    """Samples as float32 times ``2 ** -weight``; _BadPacket for a wild weight or non-finite."""
+    if abs(weight) > MAX_WEIGHT:
+        raise _BadPacket("Weight", f"Weight {weight}, beyond {MAX_WEIGHT} either way")
+    values = data.astype(np.float32)
+    if weight:
+        with np.errstate(over="ignore"):
+            values *= np.float32(2.0**-weight)
+    if (data.dtype.kind == "f" or weight < 0) and not np.all(np.isfinite(values)):
+        raise _BadPacket("samples", "non-finite sample values")
+    return values
+
+
+def _ping_time(ping: Any) -> float:
+    """Seconds since 1970 of the ping's date and time fields; _BadPacket if they do not exist."""
+    year, month, day = int(ping.Year), int(ping.Month), int(ping.Day)
+    hour, minute, second, hundredths = (
+        int(ping.Hour), int(ping.Minute), int(ping.Second), int(ping.HSeconds)
+    )  # fmt: skip
+    try:
+        days = datetime.date(year, month, day).toordinal() - _EPOCH_DAY
+    except ValueError:
+        raise _BadPacket("time", f"date {year:04d}-{month:02d}-{day:02d}") from None
+    if hour > 23 or minute > 59 or second > 60 or hundredths > 99:
+        raise _BadPacket(
+            "time", f"time of day {hour:02d}:{minute:02d}:{second:02d}.{hundredths:02d}"
+        )
+    ms = (((days * 24 + hour) * 60 + minute) * 60 + second) * 1000 + 10 * hundredths
+    return float(ms * 1000) * 1e-6  # as pyxtf's datetime64 in microseconds
+
+
+def _angle(value: float) -> float:
+    """Degrees to radians; NaN for a value no angle field holds (non-finite, beyond ±720)."""
+    return math.radians(value) if abs(value) <= 720.0 else math.nan
+
+
 def _make_ping(
     ping: Any, index: int, sides: dict[str, np.ndarray], range_bin: float, speed: float
 ) -> XtfPing:
     x, y = float(ping.SensorXcoordinate), float(ping.SensorYcoordinate)
     if x == 0.0 and y == 0.0:
         x = y = math.nan
-    time = (ping.get_time() - np.datetime64("1970-01-01T00:00:00")) / np.timedelta64(1, "us")
-    altitude = float(ping.SensorPrimaryAltitude)
+    altitude, depth = float(ping.SensorPrimaryAltitude), float(ping.SensorDepth)
     return XtfPing(
         index=index,
         number=int(ping.PingNumber),
-        time=float(time) * 1e-6,
+        time=_ping_time(ping),
         sides=sides,
         range_bin=range_bin,
         sound_speed=speed,
         x=x,
         y=y,
-        heading=math.radians(float(ping.SensorHeading)),
-        roll=math.radians(float(ping.SensorRoll)),
-        pitch=math.radians(float(ping.SensorPitch)),
-        altitude=altitude if altitude > 0 else math.nan,
-        depth=float(ping.SensorDepth),
+        heading=_angle(float(ping.SensorHeading)),
+        roll=_angle(float(ping.SensorRoll)),
+        pitch=_angle(float(ping.SensorPitch)),
+        altitude=altitude if 0.0 < altitude < _MAX_DEPTH else math.nan,
+        depth=depth if abs(depth) < _MAX_DEPTH else math.nan,
     )
 
 
 def iter_pings(path: str | os.PathLike) -> Iterator[XtfPing]:
-    """Yield the side-scan pings of an XTF file one at a time (see :class:`XtfReader`)."""
+    """Yield the side-scan pings of an XTF file one at a time (see :class:`XtfReader`).
+
+    Skipped pings are logged in one warning line once the file has been read through.
+    """
     with XtfReader(path) as reader:
         yield from reader
+        if reader.skipped:
+            log.warning("%s: %s", path, skip_summary(reader.skipped, reader.count))
+
+
+def skip_summary(
+    skipped: list[SkippedPing], total: int | None = None, rejected: dict[int, str] | None = None
+) -> str:
+    """One line saying which pings were skipped and why, and which fixes were interpolated.
+
+    Parameters
+    ----------
+    skipped : list of SkippedPing
+    total : int, optional
+        Pings read (skipped included), for "skipped 2 of 461 pings".
+    rejected : dict of int to str, optional
+        Ping index to the reason its position or heading was rejected and interpolated.
+    """
+    parts = []
+    if skipped:
+        of = f" of {total}" if total else ""
+        why = _grouped([(s.index, s.kind, s.detail) for s in skipped])
+        parts.append(f"skipped {len(skipped)}{of} pings ({why})")
+    if rejected:
+        n = len(rejected)
+        why = _grouped([(k, "", reason) for k, reason in sorted(rejected.items())])
+        parts.append(f"interpolated the navigation of {n} {'ping' if n == 1 else 'pings'} ({why})")
+    return "; ".join(parts)
+
+
+def _grouped(items: list[tuple[int, str, str]], shown: int = 3) -> str:
+    """Reasons by kind ("time: ping 17 date 2013-09-40, ..."), at most ``shown`` of each."""
+    kinds: dict[str, list[str]] = {}
+    for index, kind, detail in items:
+        kinds.setdefault(kind, []).append(f"ping {index} {detail}")
+    out = []
+    for kind, lines in kinds.items():
+        more = f", {len(lines) - shown} more" if len(lines) > shown else ""
+        out.append(f"{kind}: " * bool(kind) + ", ".join(lines[:shown]) + more)
+    return "; ".join(out)
 
 
 @dataclass(frozen=True)
@@ -349,20 +543,24 @@ class XtfNavigation:
     Attributes
     ----------
     time : ndarray
-        Seconds since 1970-01-01 UTC.
+        Seconds since 1970-01-01 UTC; a few times out of order are interpolated.
     x, y : ndarray
         Longitude, latitude (degrees) or easting, northing (metres); NaN where ``valid`` is
         False.
     units : str
         "degrees" or "metres".
     heading, roll, pitch : ndarray
-        Radians: compass heading, roll (starboard down), pitch (nose up).
+        Radians: compass heading, roll (starboard down), pitch (nose up); NaN where the file's
+        value is not an angle or the heading was rejected as a spike.
     altitude : ndarray
         Altitude above the seabed from the file, metres; NaN where the file has none.
     depth : ndarray
-        Sensor depth, metres, positive down.
+        Sensor depth, metres, positive down; NaN where the field is not a depth.
     valid : ndarray, bool
-        Pings with a position.
+        Pings with a position (rejected fixes are not valid).
+    rejected : dict of int to str
+        Row to the reason its time, fix or heading was rejected by the navigation filter (see
+        the module's notes); those rows are interpolated like pings without navigation.
     """
 
     time: np.ndarray
@@ -375,6 +573,7 @@ class XtfNavigation:
     altitude: np.ndarray
     depth: np.ndarray
     valid: np.ndarray = field(repr=False)
+    rejected: dict[int, str] = field(default_factory=dict, repr=False)
 
     @property
     def crs(self) -> str | None:
@@ -411,6 +610,13 @@ class XtfNavigation:
             raise SonarRasterError("the file has no navigation: no ping has a position")
         fresh = self.fresh()
         east, north = self.x[fresh], self.y[fresh]
+        wild = _out_of_range(east, north, self.units)
+        if wild.any():
+            k = int(np.flatnonzero(fresh)[np.argmax(wild)])
+            raise SonarRasterError(
+                f"ping {k} has the position ({self.x[k]:.6g}, {self.y[k]:.6g}), not a place on "
+                f"Earth in {self.units}; read the file with read_xtf, which rejects such fixes"
+            )
         if self.units == "degrees":
             from rasterio.warp import transform
 
@@ -422,12 +628,27 @@ class XtfNavigation:
         return np.interp(clock, clock[fresh], east), np.interp(clock, clock[fresh], north)
 
     def filled_heading(self) -> np.ndarray:
-        """Headings (radians) with pings lacking navigation interpolated from their neighbours."""
-        if not self.valid.any():
-            return self.heading.copy()
-        idx = np.flatnonzero(self.valid)
-        unwrapped = np.unwrap(self.heading[self.valid])
-        return np.mod(np.interp(np.arange(len(self.valid)), idx, unwrapped), 2 * math.pi)
+        """Headings (radians), interpolated where a ping lacks navigation or a heading.
+
+        0 where no ping has both.
+        """
+        ok = self.valid & np.isfinite(self.heading)
+        if not ok.any():
+            return np.nan_to_num(self.heading, nan=0.0)
+        idx = np.flatnonzero(ok)
+        unwrapped = np.unwrap(self.heading[ok])
+        return np.mod(np.interp(np.arange(len(ok)), idx, unwrapped), 2 * math.pi)
+
+    def filled(self, name: str) -> np.ndarray:
+        """``roll``, ``pitch``, ``depth`` or ``altitude``, NaN interpolated from neighbours.
+
+        0 where no ping has a value.
+        """
+        values = getattr(self, name)
+        ok = np.isfinite(values)
+        if not ok.any():
+            return np.zeros_like(values)
+        return np.interp(np.arange(len(values)), np.flatnonzero(ok), values[ok])
 
     def to_trajectory(self, origin: tuple[float, float] = (0.0, 0.0)) -> Trajectory:
         """The track as a :class:`Trajectory` in metres, x east, y north, z = -depth.
@@ -436,10 +657,14 @@ class XtfNavigation:
         without navigation take interpolated positions, depths and headings.
         """
         east, north = self.projected()
-        idx = np.flatnonzero(self.valid)
-        depth = np.interp(np.arange(len(self.valid)), idx, self.depth[self.valid])
+        ok = self.valid & np.isfinite(self.depth)
+        depth = (
+            np.interp(np.arange(len(ok)), np.flatnonzero(ok), self.depth[ok])
+            if ok.any()
+            else self.filled("depth")
+        )
         pos = np.stack([east - origin[0], north - origin[1], -depth], axis=1)
-        return Trajectory(pos, self.filled_heading(), self.roll, self.pitch)
+        return Trajectory(pos, self.filled_heading(), self.filled("roll"), self.filled("pitch"))
 
     def along_track_spacing(self) -> float:
         """Mean distance between pings, metres (NaN with fewer than two fixes).
@@ -464,36 +689,53 @@ def read_xtf(
     path : str or PathLike
         The ``.xtf`` file.
     pings : slice, optional
-        Which pings to keep (by index among the side-scan pings), e.g. ``slice(100, 200)``.
+        Which pings to keep (by index among the side-scan pings, skipped ones included), e.g.
+        ``slice(100, 200)``.
 
     Returns
     -------
     image : SonarImage
         ``sides`` "port" and/or "starboard", float32, shape (pings, samples), columns from
         range 0 outward; ``sonar`` with the file's frequency, sample spacing, slant range,
-        sound speed and tilt (the :class:`Sonar` defaults where the file gives 0, and a
-        uniform beam); ``metadata`` with the file's names and the per-ping ping numbers.
+        sound speed (the median of the pings') and tilt (the :class:`Sonar` defaults where the
+        file gives 0, and a uniform beam); ``metadata`` with the file's names, the per-ping
+        ping numbers and indices, and what was skipped or repaired ("skipped_pings",
+        "rejected_fixes": lists of {"index", "reason"}).
     navigation : XtfNavigation
+        One row per ping of the image; fixes and headings the filter rejected are NaN.
 
     Raises
     ------
     SonarRasterError
-        For a file that is missing, empty, not XTF, truncated, has no side-scan pings, or
-        whose sample spacing or sample count changes between pings.
+        For a file that is missing, empty, not XTF, truncated, has no usable side-scan ping in
+        the range, or whose sample spacing or sample count changes between pings for longer
+        than a glitch (:data:`GLITCH_RUN`).
+
+    Notes
+    -----
+    What was skipped or interpolated is logged as one warning line (logger ``sonar_raster.io
+    .xtf``).
     """
     keep = pings or slice(None)
+    forward = all(v is None or v >= 0 for v in (keep.start, keep.stop))
     rows: list[XtfPing] = []
     with XtfReader(path) as reader:
         for ping in reader:
-            if keep.stop is not None and ping.index >= keep.stop:
+            if forward and keep.stop is not None and ping.index >= keep.stop:
                 break
             rows.append(ping)
+        chosen = range(*keep.indices(reader.count))
+        skipped = [s for s in reader.skipped if s.index in chosen]
         channels, units, freq = reader.channels, reader.units, reader.frequency_hz
         header, tilt = reader.header, reader.tilt_deg
-    rows = rows[keep]
+    rows = [p for p in rows if p.index in chosen]
     if not rows:
-        raise SonarRasterError(f"{path}: the ping range {keep.start}:{keep.stop} is empty")
-    _check_uniform(rows, Path(path))
+        why = f": {skip_summary(skipped)}" if skipped else ""
+        raise SonarRasterError(
+            f"{path}: the ping range {keep.start}:{keep.stop} has no usable ping{why}"
+        )
+    rows, glitches = _drop_glitches(rows, Path(path))
+    skipped = sorted(skipped + glitches, key=lambda s: s.index)
     first = rows[0]
     sides = {s: np.stack([p.sides[s] for p in rows]) for s in first.sides}
     bins = next(iter(sides.values())).shape[1]
@@ -503,8 +745,12 @@ def read_xtf(
         range_bin=first.range_bin,
         tilt=math.radians(tilt) if tilt > 0 else Sonar.tilt,
         sides=tuple(sides),
-        sound_speed=first.sound_speed,
+        sound_speed=float(np.median([p.sound_speed for p in rows])),
     )
+    nav = _navigation(rows, units)
+    rejected = {rows[k].index: why for k, why in nav.rejected.items()}
+    if skipped or rejected:
+        log.warning("%s: %s", path, skip_summary(skipped, len(chosen), rejected))
     meta = {
         "source": str(path),
         "format": "xtf",
@@ -512,44 +758,212 @@ def read_xtf(
         "recording_program": header.RecordingProgramName.decode("ascii", "replace"),
         "channels": {s: int(k) for s, k in channels.items()},
         "ping_numbers": [p.number for p in rows],
+        "ping_indices": [p.index for p in rows],
         "first_ping_index": first.index,
+        "skipped_pings": [{"index": s.index, "reason": f"{s.kind}: {s.detail}"} for s in skipped],
+        "rejected_fixes": [{"index": k, "reason": why} for k, why in sorted(rejected.items())],
     }
-    return SonarImage(sides, sonar, meta), _navigation(rows, units)
+    return SonarImage(sides, sonar, meta), nav
 
 
-def _check_uniform(rows: list[XtfPing], path: Path) -> None:
-    first = rows[0]
-    for p in rows[1:]:
-        shapes = {s: len(v) for s, v in p.sides.items()}
-        if shapes != {s: len(v) for s, v in first.sides.items()}:
+def _layout(ping: XtfPing) -> tuple[tuple[tuple[str, int], ...], str]:
+    return tuple((s, len(v)) for s, v in ping.sides.items()), f"{ping.range_bin:.4e}"
+
+
+def _drop_glitches(rows: list[XtfPing], path: Path) -> tuple[list[XtfPing], list[SkippedPing]]:
+    """Rows with the usual layout, and the few isolated others as skipped pings.
+
+    Raises when the layout changes for longer than a glitch: the sonar's setting changed.
+    """
+    keys = [_layout(p) for p in rows]
+    usual = Counter(keys).most_common(1)[0][0]
+    odd = np.array([k != usual for k in keys])
+    if not odd.any():
+        return rows, []
+    ref = rows[int(np.argmin(odd))]
+    edges = np.diff(np.concatenate([[0], odd.astype(np.int8), [0]]))
+    longest = int(np.max(np.flatnonzero(edges < 0) - np.flatnonzero(edges > 0)))
+    if longest > GLITCH_RUN or odd.sum() > max(GLITCH_RUN, len(rows) // 10):
+        p = rows[int(np.argmax(odd))]
+        if _layout(p)[0] != usual[0]:
             raise SonarRasterError(
                 f"{path}: ping {p.index} has other sides or sample counts than ping "
-                f"{first.index}; read ping ranges with one setting (pings=slice(a, b))"
+                f"{ref.index}; read ping ranges with one setting (pings=slice(a, b))"
             )
-        if not math.isclose(p.range_bin, first.range_bin, rel_tol=1e-5):
-            raise SonarRasterError(
-                f"{path}: the sample spacing changes at ping {p.index} ({first.range_bin:.5g} "
-                f"to {p.range_bin:.5g} m); read ping ranges with one setting (pings=slice(a, b))"
+        raise SonarRasterError(
+            f"{path}: the sample spacing changes at ping {p.index} ({ref.range_bin:.5g} "
+            f"to {p.range_bin:.5g} m); read ping ranges with one setting (pings=slice(a, b))"
+        )
+    skipped = []
+    for p, bad in zip(rows, odd, strict=True):
+        if bad:
+            mine = ", ".join(f"{s} {len(v)}" for s, v in p.sides.items())
+            usual_sides = ", ".join(f"{s} {n}" for s, n in usual[0])
+            detail = (
+                f"samples {mine} where the others have {usual_sides}"
+                if _layout(p)[0] != usual[0]
+                else f"sample spacing {p.range_bin:.5g} m where the others have "
+                f"{ref.range_bin:.5g} m"
             )
+            skipped.append(SkippedPing(p.index, "layout", detail))
+    return [p for p, bad in zip(rows, odd, strict=True) if not bad], skipped
 
 
 def _navigation(rows: list[XtfPing], units: str) -> XtfNavigation:
     def col(name: str) -> np.ndarray:
         return np.array([getattr(p, name) for p in rows], dtype=np.float64)
 
-    x, y = col("x"), col("y")
+    x, y, heading, time = col("x"), col("y"), col("heading"), col("time")
+    rejected = _filter_navigation(x, y, heading, time, units)
     return XtfNavigation(
-        time=col("time"),
+        time=time,
         x=x,
         y=y,
         units=units,
-        heading=col("heading"),
+        heading=heading,
         roll=col("roll"),
         pitch=col("pitch"),
         altitude=col("altitude"),
         depth=col("depth"),
         valid=np.isfinite(x) & np.isfinite(y),
+        rejected=rejected,
     )
+
+
+def _out_of_range(x: np.ndarray, y: np.ndarray, units: str) -> np.ndarray:
+    """Positions that are no place on Earth: beyond ±180°, ±90° or ±1e8 m."""
+    lx, ly = (180.0, 90.0) if units == "degrees" else (1e8, 1e8)
+    with np.errstate(invalid="ignore"):
+        return ~((np.abs(x) <= lx) & (np.abs(y) <= ly))
+
+
+def _filter_navigation(
+    x: np.ndarray, y: np.ndarray, heading: np.ndarray, time: np.ndarray, units: str
+) -> dict[int, str]:
+    """Reject impossible fixes, jumps and heading spikes in place (set NaN); row -> reason.
+
+    A fix is a jump when it lies further from the running median of the fixes within
+    :data:`NAV_WINDOW` rows each side than the vehicle can travel at :data:`MAX_SPEED` in the
+    window's time span, plus :data:`FIX_NOISE`; a heading is a spike when the median of its
+    differences to its neighbours exceeds :data:`MAX_TURN_RATE` times the span plus
+    :data:`HEADING_NOISE`. An outlier run longer than the window is not caught.
+    """
+    reasons = _repair_clock(time)
+    has = np.isfinite(x) & np.isfinite(y)
+    for k in np.flatnonzero(has & _out_of_range(x, y, units)):
+        reasons[int(k)] = f"position ({x[k]:.6g}, {y[k]:.6g}) is not on Earth"
+    idx = np.flatnonzero(has & ~_out_of_range(x, y, units))
+    clock = _clock(time)
+    if len(idx) >= 3:
+        east, north = _local_metres(x[idx], y[idx], units)
+        off = _off_track(east, north, clock[idx])
+        for k in np.flatnonzero(off > 0):
+            reasons[int(idx[k])] = f"fix {off[k]:.0f} m off the track"
+    x[list(reasons)] = y[list(reasons)] = np.nan
+    idx = np.flatnonzero(np.isfinite(heading))
+    if len(idx) >= 3:
+        deg = np.degrees(heading[idx])
+        windows = _windows(deg)
+        with np.errstate(invalid="ignore"):
+            turn = np.abs(np.nanmedian((windows - deg[:, None] + 180.0) % 360.0 - 180.0, axis=1))
+        spike = turn > MAX_TURN_RATE * _window_span(clock[idx]) + HEADING_NOISE
+        for k in np.flatnonzero(spike):
+            why = f"heading {deg[k]:.0f} deg, {turn[k]:.0f} deg off its neighbours"
+            reasons.setdefault(int(idx[k]), why)
+        heading[idx[spike]] = np.nan
+    return dict(sorted(reasons.items()))
+
+
+def _off_track(east: np.ndarray, north: np.ndarray, clock: np.ndarray) -> np.ndarray:
+    """Distance (m) of each jump from the running median track, 0 for the fixes that fit."""
+    span = _window_span(clock)
+    off = np.hypot(east - _running_median(east), north - _running_median(north))
+    return np.where(off > MAX_SPEED * span + FIX_NOISE, off, 0.0)
+
+
+def track_jumps(east: np.ndarray, north: np.ndarray, time: np.ndarray) -> np.ndarray:
+    """Positions that jump off the track, by the speed limit :func:`read_xtf` applies.
+
+    Parameters
+    ----------
+    east, north : ndarray, shape (pings,)
+        Positions in metres (finite).
+    time : ndarray, shape (pings,)
+        Seconds (ping index × the median interval is used when they go back).
+
+    Returns
+    -------
+    ndarray of bool, shape (pings,)
+        True where a position lies further from the running median of its neighbours than
+        :data:`MAX_SPEED` allows in the time between them, plus :data:`FIX_NOISE`.
+    """
+    if len(east) < 3:
+        return np.zeros(len(east), dtype=bool)
+    return _off_track(np.asarray(east, float), np.asarray(north, float), _clock(time)) > 0
+
+
+def _repair_clock(time: np.ndarray) -> dict[int, str]:
+    """Interpolate (in place) the few times out of order, e.g. a clock reset; row -> reason.
+
+    The times kept are the longest non-decreasing run through the pings; when more than
+    :data:`GLITCH_RUN` pings or a tenth of them fall outside it, the clock is left as is.
+    """
+    if len(time) < 3 or np.all(np.diff(time) >= 0):
+        return {}
+    tails: list[float] = []  # patience sort: smallest tail of a run of each length
+    tail_at: list[int] = []
+    before = np.full(len(time), -1)
+    for i, t in enumerate(time.tolist()):
+        k = bisect.bisect_right(tails, t)
+        before[i] = tail_at[k - 1] if k else -1
+        if k == len(tails):
+            tails.append(t)
+            tail_at.append(i)
+        else:
+            tails[k], tail_at[k] = t, i
+    keep = np.zeros(len(time), dtype=bool)
+    i = tail_at[-1]
+    while i >= 0:
+        keep[i], i = True, int(before[i])
+    bad = np.flatnonzero(~keep)
+    if len(bad) > max(GLITCH_RUN, len(time) // 10):
+        return {}
+    shown = {int(k): np.datetime64(int(round(time[k] * 1000)), "ms") for k in bad}
+    time[bad] = np.interp(bad, np.flatnonzero(keep), time[keep])
+    return {k: f"time {t} out of order" for k, t in shown.items()}
+
+
+def _clock(time: np.ndarray) -> np.ndarray:
+    """Seconds for the filter: the times when they never go back, else ping index × interval."""
+    step = np.diff(time)
+    if np.all(step >= 0):
+        return time - time[0]
+    forward = step[step > 0]
+    return np.arange(len(time)) * (float(np.median(forward)) if len(forward) else 1.0)
+
+
+def _local_metres(x: np.ndarray, y: np.ndarray, units: str) -> tuple[np.ndarray, np.ndarray]:
+    """Positions in metres about their median (equirectangular for degrees)."""
+    x0, y0 = float(np.median(x)), float(np.median(y))
+    if units != "degrees":
+        return x - x0, y - y0
+    east = ((x - x0 + 180.0) % 360.0 - 180.0) * 111_320.0 * math.cos(math.radians(y0))
+    return east, (y - y0) * 110_574.0
+
+
+def _windows(values: np.ndarray) -> np.ndarray:
+    """(n, 2 NAV_WINDOW + 1) neighbourhoods of each value, NaN beyond the ends."""
+    padded = np.concatenate([np.full(NAV_WINDOW, np.nan), values, np.full(NAV_WINDOW, np.nan)])
+    return np.lib.stride_tricks.sliding_window_view(padded, 2 * NAV_WINDOW + 1)
+
+
+def _running_median(values: np.ndarray) -> np.ndarray:
+    return np.nanmedian(_windows(values), axis=1)
+
+
+def _window_span(clock: np.ndarray) -> np.ndarray:
+    """Seconds from each row to the furthest row of its window."""
+    return np.nanmax(np.abs(_windows(clock) - clock[:, None]), axis=1)
 
 
 def write_xtf(

@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import gzip
 import logging
+import math
 import re
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -34,6 +36,7 @@ _TOKEN = re.compile(
     re.VERBOSE | re.DOTALL,
 )
 _LIST_STOP = re.compile(r'[#\]{}"]')
+_OVERFLOW = "gives coordinates beyond float64 (numbers too large); fix the model file"
 _GROUPS = {"Group", "Transform", "Collision", "Anchor", "Billboard"}
 _IN_OUT = {"eventIn", "eventOut", "inputOnly", "outputOnly"}
 _FIELD_DECL = {"field", "exposedField", "initializeOnly", "inputOutput"}
@@ -165,9 +168,13 @@ class _Lexer:
                 )
         words = "".join(pieces).replace(",", " ").split()
         try:
-            return np.array(words, dtype=np.float64)
+            values = np.array(words, dtype=np.float64)
         except ValueError:
-            return self._slow_numbers(words, start)
+            values = self._slow_numbers(words, start)
+        if not np.all(np.isfinite(values)):
+            word = words[int(np.argmin(np.isfinite(values)))]
+            raise self.src.error(self.text.find(word, start), _not_finite(word))
+        return values
 
     def _slow_numbers(self, words: list[str], start: int) -> np.ndarray:
         """Convert hexadecimal integers, or raise at the first word that is not a number."""
@@ -183,8 +190,20 @@ class _Lexer:
         return out
 
 
+def _lenient() -> Any:
+    """No floating-point warnings: large finite numbers may overflow; results are checked."""
+    return np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore")
+
+
 def _number(text: str) -> float:
-    return float(int(text, 16)) if text.lstrip("+-")[:2] in ("0x", "0X") else float(text)
+    try:
+        return float(int(text, 16)) if text.lstrip("+-")[:2] in ("0x", "0X") else float(text)
+    except OverflowError:  # a hexadecimal integer beyond float64
+        return math.inf
+
+
+def _not_finite(word: str) -> str:
+    return f"the number {word[:40]!r} is not a finite float64 (|x| < 1.8e308); fix the model file"
 
 
 class _Parser:
@@ -312,7 +331,12 @@ class _Parser:
         if tok.kind == "num":
             values = [_number(tok.text)]
             while self.lex.peek().kind == "num":
-                values.append(_number(self.lex.next().text))
+                word = self.lex.next()
+                values.append(_number(word.text))
+                if not math.isfinite(values[-1]):
+                    raise self.src.error(word.pos, _not_finite(word.text))
+            if not math.isfinite(values[0]):
+                raise self.src.error(tok.pos, _not_finite(tok.text))
             return np.array(values)
         if tok.kind == "str":
             return _unquote(tok.text)
@@ -443,7 +467,7 @@ def _read_text(path: Path) -> str:
     if data[:2] == b"\x1f\x8b":
         try:
             data = gzip.decompress(data)
-        except (OSError, EOFError):
+        except (OSError, EOFError, zlib.error):
             raise SonarRasterError(
                 f"{path.name}: broken gzip data; re-export or re-compress the file"
             ) from None
@@ -555,14 +579,15 @@ def _indexed_face_set(node: _Node) -> tuple[np.ndarray, np.ndarray]:
     coord = node.fields.get("coord")
     points = _numbers(coord, "point", width=3) if isinstance(coord, _Node) else np.zeros(0)
     points = points.reshape(-1, 3)
-    faces = _fan(_numbers(node, "coordIndex"))
-    bad = faces[(faces < 0) | (faces >= len(points))]
+    index = _numbers(node, "coordIndex")
+    bad = index[(index < -1) | (index >= len(points)) | (index != np.round(index))]
     if bad.size:
         raise node.src.error(
             node.pos,
-            f"IndexedFaceSet coordIndex {bad[0]} is outside its "
+            f"IndexedFaceSet coordIndex {bad[0]:g} is outside its "
             f"{len(points)} points; fix the model file",
         )
+    faces = _fan(index)
     return points, faces if _flag(node, "ccw", True) else faces[:, [0, 2, 1]]
 
 
@@ -707,7 +732,10 @@ class _Walker:
         inner = node.def_name or name
         if node.type in _GROUPS:
             if node.type == "Transform":
-                matrix = matrix @ _transform_matrix(node)
+                with _lenient():
+                    matrix = matrix @ _transform_matrix(node)
+                if not np.all(np.isfinite(matrix)):
+                    raise node.src.error(node.pos, f"Transform {_OVERFLOW}")
             self.walk(_children(node, "children"), matrix, inner)
         elif node.type in ("Switch", "LOD"):
             key = "choice" if node.type == "Switch" else "level"
@@ -731,16 +759,20 @@ class _Walker:
             build = _GEOMETRY.get(geometry.type)
             if build is None:
                 log.debug("skipping unsupported geometry %s", geometry.type)
-            self._meshes[id(geometry)] = None if build is None else build(geometry)
+            with _lenient():
+                self._meshes[id(geometry)] = None if build is None else build(geometry)
         mesh = self._meshes[id(geometry)]
         if mesh is None or not len(mesh[1]):
             return
-        vertices = mesh[0] @ matrix[:3, :3].T + matrix[:3, 3]
-        faces = mesh[1][:, ::-1] if np.linalg.det(matrix[:3, :3]) < 0 else mesh[1]
+        with _lenient():
+            vertices = mesh[0] @ matrix[:3, :3].T + matrix[:3, 3]
+            reflectivity = _reflectivity(node)
+        if not (np.all(np.isfinite(vertices)) and math.isfinite(reflectivity)):
+            raise node.src.error(node.pos, f"{geometry.type} {_OVERFLOW}")
+        mirrored = np.linalg.slogdet(matrix[:3, :3])[0] < 0  # the sign, without overflow
+        faces = mesh[1][:, ::-1] if mirrored else mesh[1]
         name = node.def_name or geometry.def_name or name or f"{self.stem}_{len(self.parts)}"
-        self.parts.append(
-            MeshPart(vertices, np.array(faces, dtype=np.int64), _reflectivity(node), name)
-        )
+        self.parts.append(MeshPart(vertices, np.array(faces, dtype=np.int64), reflectivity, name))
 
     def inline(self, node: _Node, matrix: np.ndarray, name: str | None) -> None:
         """Walk the file named by the Inline's ``url``, relative to the including file."""

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import ctypes
+import gc
 import math
 from pathlib import Path
 from types import SimpleNamespace
@@ -258,6 +260,19 @@ def test_cli_bad_files_exit_2_and_write_nothing(tmp_path, capsys, case, command)
     assert status == 2
     assert len(err) == 1 and err[0].startswith("sonar-raster: error:")
     assert list(out.iterdir()) == []
+
+
+@needs_sample
+def test_header_without_side_scan_channel_raises_and_closes_the_file(tmp_path):
+    data = bytearray(SAMPLE.read_bytes()[: 1024 + 4480])
+    info = pyxtf.XTFFileHeader.ChanInfo.offset
+    for k in range(2):  # TypeOfChannel 0: neither port nor starboard
+        data[info + k * ctypes.sizeof(pyxtf.XTFChanInfo)] = 0
+    path = tmp_path / "no_sides.xtf"
+    path.write_bytes(bytes(data))
+    with pytest.raises(SonarRasterError, match="no port or starboard side-scan channel"):
+        read_xtf(path)
+    gc.collect()  # an unclosed file would warn now (ResourceWarning: an error in these tests)
 
 
 def test_missing_file():

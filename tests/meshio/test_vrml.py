@@ -5,6 +5,7 @@ from __future__ import annotations
 import gzip
 import re
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -438,3 +439,69 @@ def test_malformed_input_raises_one_line_error_with_line_number(text, message):
 def test_missing_file_raises_naming_it(tmp_path):
     with pytest.raises(SonarRasterError, match=r"nope\.wrl' not found; check the path"):
         load_vrml(tmp_path / "nope.wrl")
+
+
+# -- numbers beyond float64 (found by tests/io/test_fuzz.py) -------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        (
+            HEADER + "\n" + shape(TRIANGLE.replace("2 1 1", "2 1e999 1")),
+            r"<string>:3: the number '1e999' is not a finite float64",
+        ),
+        (
+            HEADER + "Transform {\n translation 1 -1e999 0 children [] }",
+            r"<string>:3: the number '-1e999' is not a finite float64",
+        ),
+        (
+            HEADER + "Shape { geometry Sphere { radius 0x1" + "0" * 300 + " } }",
+            r"<string>:2: the number '0x10000.*' is not a finite float64",
+        ),
+        (
+            HEADER + "\n" + shape(TRIANGLE.replace("[ 0 1 2 ]", "[ 0 1 1e30 ]")),
+            r"<string>:3: IndexedFaceSet coordIndex 1e\+30 is outside its 3 points",
+        ),
+        (
+            HEADER + "\n" + shape(TRIANGLE.replace("[ 0 1 2 ]", "[ 0 1 1.5 ]")),
+            r"<string>:3: IndexedFaceSet coordIndex 1.5 is outside its 3 points",
+        ),
+        (
+            HEADER + "Transform { scale 1e300 1 1 children [\n"
+            "Transform { scale 1e300 1 1 children [ Shape { geometry Box { } } ] } ] }",
+            r"<string>:3: Transform gives coordinates beyond float64",
+        ),
+        (
+            HEADER + "Transform { scale 1e300 1 1 children [\n"
+            "Shape { geometry Box { size 1e300 1 1 } } ] }",
+            r"<string>:3: Box gives coordinates beyond float64",
+        ),
+        (
+            HEADER + "Transform { scale 10 10 10 children [\n"
+            "Shape { geometry Sphere { radius 1e308 } } ] }",
+            r"<string>:3: Sphere gives coordinates beyond float64",
+        ),
+    ],
+)
+def test_numbers_beyond_float64_raise_one_line_without_warnings(text, message):
+    with pytest.raises(SonarRasterError, match=message) as info:
+        parse_vrml(text)  # filterwarnings = error: an overflow warning would fail here
+    assert "\n" not in str(info.value)
+
+
+def test_huge_but_finite_scale_and_mirroring_keep_faces_outward():
+    (part,) = parse("Transform { scale -1e150 1e150 1e150 children [ Shape { geometry Box {} } ] }")
+    assert np.all(np.isfinite(part.vertices))
+    # the scale's determinant overflows float64, its sign does not: faces stay outward
+    assert_outward(SimpleNamespace(vertices=part.vertices / 1e150, faces=part.faces), np.zeros(3))
+
+
+def test_damaged_gzip_stream_is_one_line_error(tmp_path):
+    packed = bytearray(gzip.compress((HEADER + shape("Box { }") * 50).encode()))
+    packed[20:30] = b"\xff" * 10  # inside the deflate stream: zlib.error, not OSError
+    path = tmp_path / "broken.wrl.gz"
+    path.write_bytes(bytes(packed))
+    with pytest.raises(SonarRasterError, match=r"broken\.wrl\.gz: broken gzip data") as info:
+        load_vrml(path)
+    assert "\n" not in str(info.value)
