@@ -271,7 +271,12 @@ def _invert_xtf(args: argparse.Namespace) -> int:
     )
     image, nav = result.image, result.navigation
     raster = georeference(result) if nav.valid.any() else None
-    csv = partial(write_track_csv, track=result.track, recorded=nav.altitude)
+    csv = partial(
+        write_track_csv,
+        track=result.track,
+        recorded=nav.altitude,
+        pings=image.metadata.get("ping_indices"),
+    )
     extra: list[tuple[Path, Callable[[Path], None]]] = [(out / "bottom_track.csv", csv)]
     if raster is not None:
         extra += geotiff_jobs(out, raster)

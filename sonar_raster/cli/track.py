@@ -86,7 +86,8 @@ def write_track(out: Path, track: BottomTrack, recorded: np.ndarray, image) -> P
             print(f"matplotlib is not installed: writing {csv} instead of {out}")
             out = csv
     if out.suffix.lower() == ".csv":
-        commit([(out, partial(write_track_csv, track=track, recorded=recorded))])
+        pings = image.metadata.get("ping_indices")  # file ping numbers (bad pings skipped)
+        commit([(out, partial(write_track_csv, track=track, recorded=recorded, pings=pings))])
     else:
         commit([(out, partial(_plot_track, track=track, recorded=recorded, image=image))])
     return out
