@@ -7,7 +7,6 @@ Shape. Numeric lists (``point [...]``, ``coordIndex [...]``) are converted in bu
 
 from __future__ import annotations
 
-import gzip
 import logging
 import math
 import re
@@ -465,13 +464,40 @@ def _read_text(path: Path) -> str:
             f"cannot read VRML file '{path}' ({exc.strerror}); check the path and its permissions"
         ) from None
     if data[:2] == b"\x1f\x8b":
-        try:
-            data = gzip.decompress(data)
-        except (OSError, EOFError, zlib.error):
-            raise SonarRasterError(
-                f"{path.name}: broken gzip data; re-export or re-compress the file"
-            ) from None
+        data = _gunzip(data, path.name, MAX_TEXT_BYTES)
     return data.decode("utf-8", errors="replace")
+
+
+#: Largest VRML text read (after decompression): text of this size parses into several times
+#: as much memory, far beyond any model a side-scan scene holds.
+MAX_TEXT_BYTES = 1 << 30
+
+
+def _gunzip(data: bytes, name: str, limit: int) -> bytes:
+    """Decompress every gzip member of ``data``, refusing to grow past ``limit`` bytes."""
+    out, total = [], 0
+    rest = data
+    try:
+        while rest:
+            inflater = zlib.decompressobj(wbits=31)
+            chunk = inflater.decompress(rest, limit + 1 - total)
+            total += len(chunk)
+            out.append(chunk)
+            if total > limit or inflater.unconsumed_tail:
+                raise SonarRasterError(
+                    f"{name}: decompresses to more than {limit >> 20} MiB of text; "
+                    "not a model file this tool can load"
+                )
+            if not inflater.eof:
+                raise zlib.error("truncated gzip stream")
+            rest = inflater.unused_data
+            if rest and rest[:2] != b"\x1f\x8b":
+                break  # trailing bytes after the last member, as gzip itself ignores
+    except (OSError, EOFError, zlib.error):
+        raise SonarRasterError(
+            f"{name}: broken gzip data; re-export or re-compress the file"
+        ) from None
+    return b"".join(out)
 
 
 def _parse_file(path: Path, stack: tuple[Path, ...]) -> tuple[list[_Node], dict[str, _Proto]]:

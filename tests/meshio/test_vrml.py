@@ -505,3 +505,22 @@ def test_damaged_gzip_stream_is_one_line_error(tmp_path):
     with pytest.raises(SonarRasterError, match=r"broken\.wrl\.gz: broken gzip data") as info:
         load_vrml(path)
     assert "\n" not in str(info.value)
+
+
+def test_gzip_bomb_is_refused_before_it_fills_memory(tmp_path, monkeypatch):
+    from sonar_raster.meshio import vrml
+
+    monkeypatch.setattr(vrml, "MAX_TEXT_BYTES", 10_000)
+    bomb = tmp_path / "bomb.wrl"
+    bomb.write_bytes(gzip.compress(b"#VRML V2.0 utf8\n" + b" " * 50_000))
+    with pytest.raises(SonarRasterError, match="decompresses to more than"):
+        vrml.load_vrml(bomb)
+
+
+def test_multi_member_gzip_is_read_whole(tmp_path):
+    from sonar_raster.meshio import vrml
+
+    path = tmp_path / "two.wrl"
+    first = b"#VRML V2.0 utf8\nShape { geometry Box { size 1 2 3 } }\n"
+    path.write_bytes(gzip.compress(first) + gzip.compress(b"Shape { geometry Box { } }\n"))
+    assert len(vrml.load_vrml(path)) == 2
