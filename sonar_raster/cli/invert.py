@@ -249,7 +249,7 @@ def _invert_xtf(args: argparse.Namespace) -> int:
     """``sonar-raster invert FILE.xtf -o DIR``: both sides, bottom-tracked, with GeoTIFFs."""
     from ..inversion.solver import BeamProfile
     from ..inversion.track_io import summary_lines, write_track_csv
-    from ..inversion.write import energy_summary, write_products
+    from ..inversion.write import energy_summary, product_jobs
     from ..inversion.xtf import georeference, geotiff_jobs, invert_xtf
     from ..io.commit import commit
 
@@ -280,13 +280,22 @@ def _invert_xtf(args: argparse.Namespace) -> int:
     extra: list[tuple[Path, Callable[[Path], None]]] = [(out / "bottom_track.csv", csv)]
     if raster is not None:
         extra += geotiff_jobs(out, raster)
-    written = []
+    jobs = []
     for side, inv in result.sides.items():
-        written += write_products(
+        jobs += product_jobs(
             inv, out / side, side, image.sonar.range_bin,
             mesh=not args.no_mesh, previews=not args.no_previews,
         )  # fmt: skip
-    written += commit(extra)
+    made = [d for d in [out, *(out / side for side in result.sides)] if not d.exists()]
+    for folder in made:
+        folder.mkdir(parents=True, exist_ok=True)
+    try:
+        written = commit(jobs + extra)  # every side's products and the track/GeoTIFFs, or none
+    except BaseException:
+        for folder in reversed(made):  # leave no empty folders behind either
+            if folder.is_dir() and not any(folder.iterdir()):
+                folder.rmdir()
+        raise
     if not args.quiet:
         for line in summary_lines(result.track, nav.altitude, image.sonar.range_bin):
             print(line)

@@ -142,9 +142,34 @@ def write_products(
     list of Path
         The files written.
     """
-    from ..io.commit import commit, write_json
+    from ..io.commit import commit
 
     directory = Path(directory)
+    jobs = product_jobs(
+        inv, directory, side, range_bin, mesh=mesh, previews=previews,
+        preview_size=preview_size, backend=backend,
+    )  # fmt: skip
+    directory.mkdir(parents=True, exist_ok=True)
+    return commit(jobs)
+
+
+def product_jobs(
+    inv: Inversion,
+    directory: Path,
+    side: str,
+    range_bin: float,
+    *,
+    mesh: bool = True,
+    previews: bool = True,
+    preview_size: tuple[int, int] = (640, 480),
+    backend: str | None = None,
+) -> list[tuple[Path, Callable[[Path], None]]]:
+    """The (path, writer) jobs of :func:`write_products`; nothing is written.
+
+    For a caller that commits them together with other files in one
+    :func:`sonar_raster.io.commit.commit`. Parameters as for :func:`write_products`.
+    """
+    from ..io.commit import write_json
 
     maps = {"elevation": inv.elevation, "reflectivity": inv.reflectivity, "beam": inv.beam}
     if inv.reprojected is not None:
@@ -167,8 +192,7 @@ def write_products(
             partial(write_json, doc=summary(inv, side, range_bin, extra)),
         )
     )
-    directory.mkdir(parents=True, exist_ok=True)
-    return commit(jobs)
+    return jobs
 
 
 def _mesh_jobs(inv, directory, side, jobs, mesh, previews, size, backend) -> dict:

@@ -440,3 +440,25 @@ def _wreck_stands_above_seabed(directory: Path) -> None:
     on, off = on[np.isfinite(on)], off[np.isfinite(off)]  # cells with an estimate
     assert on.size > 20 and off.size > 100
     assert np.percentile(on, 90) > np.percentile(off, 99)
+
+
+def test_invert_xtf_writes_every_product_or_none(tmp_path, monkeypatch, capsys):
+    """A failure while writing the last file (a GeoTIFF) leaves no side's products behind."""
+    if not SAMPLE.is_file():
+        pytest.skip(f"{SAMPLE} not present")
+    import sonar_raster.inversion.xtf as inv_xtf
+
+    def broken(directory, raster):
+        def fail(tmp):
+            raise OSError(28, "No space left on device")
+
+        return [(directory / "mosaic.tif", fail)]
+
+    monkeypatch.setattr(inv_xtf, "geotiff_jobs", broken)
+    out = tmp_path / "inv"
+    status = main(
+        ["invert", str(SAMPLE), "-o", str(out), "--pings", "288:312", "--max-iter", "2",
+         "--levels", "1", "--no-mesh", "--no-previews", "--quiet"]
+    )  # fmt: skip
+    assert status == 2 and "No space left" in capsys.readouterr().err
+    assert not out.exists()
