@@ -64,10 +64,14 @@ def test_render_and_invert_stay_functions_after_their_subpackages_load():
     assert inspect.isfunction(render) and inspect.isfunction(invert)
 
 
-def test_public_functions_have_numpy_docstrings():
+def test_public_callables_document_their_parameters():
+    """Every public function and class has a docstring; functions taking arguments list them."""
     for name in sonar_raster.__all__:
         obj = getattr(sonar_raster, name)
-        assert inspect.getdoc(obj), f"{name} has no docstring"
+        doc = inspect.getdoc(obj)
+        assert doc, f"{name} has no docstring"
+        if inspect.isfunction(obj) and inspect.signature(obj).parameters:
+            assert "Parameters\n---" in doc, f"{name}: no Parameters section"
 
 
 def test_only_rendering_gl_knows_opengl():

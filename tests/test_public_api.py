@@ -28,13 +28,12 @@ def test_readme_python_example_runs_from_another_folder(tmp_path):
 
 def test_load_scene_takes_a_bundled_name_or_a_path():
     by_name = sr.load_scene("flat_calibration")
-    path = sr.list_bundled()  # names and descriptions
-    assert ("flat_calibration" in dict(path)) and by_name.scene.n_triangles > 0
+    assert "flat_calibration" in dict(sr.list_bundled()) and by_name.scene.n_triangles > 0
     by_path = sr.load_scene(by_name.source)
     assert by_path.scene.n_triangles == by_name.scene.n_triangles
 
 
-def test_render_models_agree_on_the_flat_calibration_scene(gl):
+def test_render_models_agree_on_the_flat_calibration_scene():
     setup = sr.load_scene("flat_calibration")
     raster = sr.render(setup.scene, setup.sonar, setup.trajectory)
     reference = sr.render(setup.scene, setup.sonar, setup.trajectory, model="reference")

@@ -25,15 +25,10 @@ def parser(doc: str | None, out: Path | None = None) -> argparse.ArgumentParser:
     return ap
 
 
-def pyplot(required: bool = True) -> Any:
-    """matplotlib's pyplot on the headless Agg backend; None (and a note) if not installed."""
-    try:
-        import matplotlib
-    except ImportError:
-        if required:
-            raise SystemExit("matplotlib is needed (a dependency): pip install -e .") from None
-        print("matplotlib not installed: no plot")
-        return None
+def pyplot() -> Any:
+    """matplotlib's pyplot on the headless Agg backend (matplotlib is a package dependency)."""
+    import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 

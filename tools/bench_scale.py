@@ -208,9 +208,7 @@ def report(results: list[dict]) -> None:
 
 
 def plot(results: list[dict], path: Path) -> None:
-    plt = pyplot(required=False)
-    if plt is None:
-        return
+    plt = pyplot()
     fig, axes = plt.subplots(2, 3, figsize=(13, 7))
     for col, sweep in enumerate(("triangles", "pings", "bins")):
         for path_name in sorted({r["path"] for r in results if r["sweep"] == sweep}):

@@ -222,7 +222,7 @@ def _check_image_size(path: Path) -> None:
 
 def _check_output_dir(out: Path, subdirs: tuple[str, ...]) -> None:
     """Check, before any work, that ``out`` (and ``out/<sub>``) can be made and written."""
-    from ..io.commit import temp_name
+    from ..io.commit import check_can_create
 
     for folder in (out, *(out / sub for sub in subdirs)):
         if folder.exists() and not folder.is_dir():
@@ -235,14 +235,7 @@ def _check_output_dir(out: Path, subdirs: tuple[str, ...]) -> None:
         existing = existing.parent
     if existing.exists() and not existing.is_dir():
         raise SonarRasterError(f"cannot make {out}: {existing} is not a directory")
-    probe = temp_name(existing / "probe")
-    try:
-        with open(probe, "xb"):
-            pass
-    except OSError as exc:
-        raise SonarRasterError(f"cannot write into {existing}: {exc.strerror or exc}") from None
-    finally:
-        probe.unlink(missing_ok=True)
+    check_can_create(existing)
 
 
 def _invert_xtf(args: argparse.Namespace) -> int:

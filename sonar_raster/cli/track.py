@@ -51,14 +51,14 @@ def add_parser(sub: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run ``sonar-raster track``."""
     from ..inversion.track_io import summary_lines
+    from ..io.commit import check_writable
     from ..io.xtf import read_xtf
 
     out = Path(args.output) if args.output else None
     if out is not None:
         if out.suffix.lower() not in TRACK_SUFFIXES:
             raise SonarRasterError(f"output {out}: unknown extension; use .png or .csv")
-        if not out.parent.is_dir():
-            raise SonarRasterError(f"cannot write {out}: directory {out.parent} does not exist")
+        check_writable(out)
     image, nav = read_xtf(args.file, parse_pings(args.pings))
     from ..inversion.bottom import track_bottom
 
@@ -74,17 +74,10 @@ def run(args: argparse.Namespace) -> int:
 
 
 def write_track(out: Path, track: BottomTrack, recorded: np.ndarray, image) -> Path:
-    """Write the track as .csv, or as .png when matplotlib is installed (else .csv beside it)."""
+    """Write the track as a .csv table or a .png plot (with the waterfall), all-or-nothing."""
     from ..inversion.track_io import write_track_csv
     from ..io.commit import commit
 
-    if out.suffix.lower() == ".png":
-        try:
-            import matplotlib  # noqa: F401
-        except ImportError:
-            csv = out.with_suffix(".csv")
-            print(f"matplotlib is not installed: writing {csv} instead of {out}")
-            out = csv
     if out.suffix.lower() == ".csv":
         pings = image.metadata.get("ping_indices")  # file ping numbers (bad pings skipped)
         commit([(out, partial(write_track_csv, track=track, recorded=recorded, pings=pings))])

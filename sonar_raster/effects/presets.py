@@ -42,7 +42,7 @@ _HISAS_SENSOTEK = (
 )
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class SensorPreset:
     """One sensor's published figures, what was chosen where none is published, and sources.
 
@@ -95,22 +95,22 @@ class SensorPreset:
     name: str
     maker: str
     model: str
-    kind: str
+    kind: str = "side-scan"
     frequency_hz: float
-    bandwidth_hz: float | None
-    pulse_length_s: float | None
+    bandwidth_hz: float | None = None
+    pulse_length_s: float | None = None
     pulse: str
     horizontal_beamwidth_deg: float | None
     vertical_beamwidth_deg: float
     tilt_deg: float
     max_ranges_m: tuple[float, ...]
-    range_bins: int | None
+    range_bins: int | None = None
     bits: int
-    tvg: str
-    tvg_log_coefficient: float
-    sas_resolution_m: float | None
-    array_length_m: float | None
-    sound_speed_m_s: float
+    tvg: str = "log"
+    tvg_log_coefficient: float = 30.0
+    sas_resolution_m: float | None = None
+    array_length_m: float | None = None
+    sound_speed_m_s: float = 1500.0
     assumed: tuple[str, ...]
     sources: tuple[str, ...]
     notes: str
@@ -224,22 +224,14 @@ PRESETS: dict[str, SensorPreset] = {
             name="edgetech-4200-100",
             maker="EdgeTech",
             model="4200-SP, 100 kHz channel of the 100/400 kHz towfish",
-            kind="side-scan",
             frequency_hz=100e3,
             bandwidth_hz=10e3,
-            pulse_length_s=None,
             pulse="chirp",
             horizontal_beamwidth_deg=1.5,
             vertical_beamwidth_deg=50.0,
             tilt_deg=10.0,
             max_ranges_m=(100.0, 200.0, 500.0),
-            range_bins=None,
             bits=16,
-            tvg="log",
-            tvg_log_coefficient=30.0,
-            sas_resolution_m=None,
-            array_length_m=None,
-            sound_speed_m_s=1500.0,
             assumed=(
                 "bandwidth_hz",
                 "horizontal_beamwidth_deg",
@@ -265,22 +257,14 @@ PRESETS: dict[str, SensorPreset] = {
             name="datasonics-sis1500",
             maker="Datasonics (Benthos)",
             model="SIS-1500 Seafloor Imaging System, TTV-195 tow vehicle",
-            kind="side-scan",
             frequency_hz=200e3,
             bandwidth_hz=20e3,
-            pulse_length_s=None,
             pulse="chirp",
             horizontal_beamwidth_deg=1.0,
             vertical_beamwidth_deg=50.0,
             tilt_deg=10.0,
             max_ranges_m=(150.0,),
-            range_bins=None,
             bits=16,
-            tvg="log",
-            tvg_log_coefficient=30.0,
-            sas_resolution_m=None,
-            array_length_m=None,
-            sound_speed_m_s=1500.0,
             assumed=("vertical_beamwidth_deg", "max_ranges_m", "tvg"),
             sources=(f"{_DATASONICS}?page=24", f"{_DATASONICS}?page=82"),
             notes=(
@@ -296,22 +280,14 @@ PRESETS: dict[str, SensorPreset] = {
             name="klein-3900-445",
             maker="Klein (L3Harris)",
             model="3900, 445 kHz channel",
-            kind="side-scan",
             frequency_hz=445e3,
-            bandwidth_hz=None,
             pulse_length_s=50e-6,
             pulse="cw",
             horizontal_beamwidth_deg=0.4,
             vertical_beamwidth_deg=40.0,
             tilt_deg=10.0,
             max_ranges_m=(75.0, 150.0),
-            range_bins=None,
             bits=16,
-            tvg="log",
-            tvg_log_coefficient=30.0,
-            sas_resolution_m=None,
-            array_length_m=None,
-            sound_speed_m_s=1500.0,
             assumed=(
                 "pulse_length_s",
                 "horizontal_beamwidth_deg",
@@ -334,9 +310,7 @@ PRESETS: dict[str, SensorPreset] = {
             name="marine-sonic-600",
             maker="Marine Sonic Technology",
             model="Sea Scan HDS 600 kHz (OceanServer Iver2 AUV)",
-            kind="side-scan",
             frequency_hz=600e3,
-            bandwidth_hz=None,
             pulse_length_s=2.0 * (_MS_RANGE / _MS_BINS) / 1500.0,
             pulse="cw",
             horizontal_beamwidth_deg=0.5,
@@ -345,11 +319,6 @@ PRESETS: dict[str, SensorPreset] = {
             max_ranges_m=(_MS_RANGE,),
             range_bins=_MS_BINS,
             bits=16,
-            tvg="log",
-            tvg_log_coefficient=30.0,
-            sas_resolution_m=None,
-            array_length_m=None,
-            sound_speed_m_s=1500.0,
             assumed=(
                 "pulse_length_s",
                 "horizontal_beamwidth_deg",
@@ -378,22 +347,14 @@ PRESETS: dict[str, SensorPreset] = {
             name="klein-3900-900",
             maker="Klein (L3Harris)",
             model="3900, 900 kHz channel",
-            kind="side-scan",
             frequency_hz=900e3,
-            bandwidth_hz=None,
             pulse_length_s=25e-6,
             pulse="cw",
             horizontal_beamwidth_deg=0.2,
             vertical_beamwidth_deg=40.0,
             tilt_deg=10.0,
             max_ranges_m=(50.0, 75.0),
-            range_bins=None,
             bits=16,
-            tvg="log",
-            tvg_log_coefficient=30.0,
-            sas_resolution_m=None,
-            array_length_m=None,
-            sound_speed_m_s=1500.0,
             assumed=(
                 "pulse_length_s",
                 "horizontal_beamwidth_deg",
@@ -415,22 +376,14 @@ PRESETS: dict[str, SensorPreset] = {
             name="garmin-sidevu-1200",
             maker="Garmin",
             model="GT34UHD-TM transducer, SideVü channel (~1.2 MHz label)",
-            kind="side-scan",
             frequency_hz=1.12e6,
-            bandwidth_hz=None,
             pulse_length_s=20e-6,
             pulse="cw",
             horizontal_beamwidth_deg=0.44,
             vertical_beamwidth_deg=55.0,
             tilt_deg=30.0,
             max_ranges_m=(38.1,),
-            range_bins=None,
             bits=16,
-            tvg="log",
-            tvg_log_coefficient=30.0,
-            sas_resolution_m=None,
-            array_length_m=None,
-            sound_speed_m_s=1500.0,
             assumed=("pulse_length_s", "tilt_deg", "tvg"),
             sources=(_GARMIN_SIDEVU,),
             notes=(
@@ -449,19 +402,13 @@ PRESETS: dict[str, SensorPreset] = {
             kind="sas",
             frequency_hz=100e3,
             bandwidth_hz=25e3,
-            pulse_length_s=None,
             pulse="chirp",
             horizontal_beamwidth_deg=None,
             vertical_beamwidth_deg=40.0,
             tilt_deg=10.0,
             max_ranges_m=(200.0,),
-            range_bins=None,
             bits=16,
-            tvg="log",
-            tvg_log_coefficient=30.0,
             sas_resolution_m=0.03,
-            array_length_m=None,
-            sound_speed_m_s=1500.0,
             assumed=(
                 "frequency_hz",
                 "bandwidth_hz",

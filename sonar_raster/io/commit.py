@@ -23,6 +23,7 @@ import OpenImageIO as oiio
 from ..errors import SonarRasterError
 
 __all__ = [
+    "check_can_create",
     "check_directory",
     "check_writable",
     "commit",
@@ -59,18 +60,26 @@ def check_writable(path: str | os.PathLike) -> Path:
     path = Path(path)
     check_directory(path)
     _check_target(path)
-    probe = temp_name(path)
+    check_can_create(path.parent, what=f"cannot write {path}")
+    sweep_stale(path)
+    return path
+
+
+def check_can_create(folder: Path, what: str | None = None) -> None:
+    """Raise unless a new file can be made in ``folder`` (a probe is made and removed at once).
+
+    Catches read-only and pseudo file systems such as /proc, where permission bits lie.
+    ``what`` starts the error message (default ``"cannot write into <folder>"``).
+    """
+    probe = temp_name(folder / "probe")
     try:
         with open(probe, "xb"):
             pass
     except OSError as exc:
-        raise SonarRasterError(
-            f"cannot write {path}: {exc.strerror or exc} in {path.parent}"
-        ) from None
+        lead = what or f"cannot write into {folder}"
+        raise SonarRasterError(f"{lead}: {exc.strerror or exc} in {folder}") from None
     finally:
         probe.unlink(missing_ok=True)
-    sweep_stale(path)
-    return path
 
 
 def _check_target(path: Path) -> None:

@@ -298,7 +298,6 @@ def test_cli_track_writes_csv(tmp_path, capsys):
 
 @needs_sample
 def test_cli_track_png(tmp_path):
-    pytest.importorskip("matplotlib")
     out = tmp_path / "alt.png"
     assert main(["track", str(SAMPLE), "-o", str(out), "--quiet", "--pings", "0:100"]) == 0
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

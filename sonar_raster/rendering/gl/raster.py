@@ -835,6 +835,26 @@ def render_raster(
     progress: bool = False,
     labels: bool = False,
 ) -> SonarImage:
-    """Render with a temporary :class:`RasterRenderer` (see its ``render``)."""
+    """Render with a temporary :class:`RasterRenderer`, released afterwards.
+
+    Parameters
+    ----------
+    scene, sonar, trajectory
+        What to image, with what, from where (world metres, z up).
+    backend : {"egl", "osmesa"}, optional
+        Headless GL backend; default ``$SONAR_RASTER_GL``, else EGL, then OSMesa.
+    settings : RasterSettings, optional
+        Sampling settings.
+    progress : bool
+        Show a progress bar.
+    labels : bool
+        Also return per-pixel object ids (``image.labels``).
+
+    Returns
+    -------
+    SonarImage
+        float32 intensity per side, shape (pings, bins). Many renders: make one
+        :class:`RasterRenderer` and call its ``render`` (the context and scene upload are kept).
+    """
     with RasterRenderer(backend, settings) as renderer:
         return renderer.render(scene, sonar, trajectory, progress=progress, labels=labels)
