@@ -77,7 +77,12 @@ from bench_render import (  # noqa: E402
     write_csv,
 )
 
-from sonar_raster.rendering.coherent.model import Pulse, render_coherent, to_raster_units  # noqa: E402
+from sonar_raster.rendering.coherent.model import (  # noqa: E402
+    SEABED_SPACING,
+    Pulse,
+    render_coherent,
+    to_raster_units,
+)
 from sonar_raster.rendering.gl.raster import RasterRenderer, RasterSettings  # noqa: E402
 from sonar_raster.scene import build_scene  # noqa: E402
 from sonar_raster.scenes.bundled import list_bundled  # noqa: E402
@@ -378,10 +383,14 @@ def _predict(done: list[tuple[float, float]], spacing: float) -> float:
 def coherent_rows(case: Case, refs: Refs, args) -> list[Row]:
     rows, done = [], []
     n = case.trajectory.n_pings
-    for spacing in sorted(args.spacings, reverse=True):
-        label = f"s={spacing:g}λ"
-        guess = _predict(done, spacing)
-        if guess > args.coherent_cap:
+    for spacing in [*sorted(args.spacings, reverse=True), None]:
+        label = f"s={spacing:g}λ" if spacing is not None else f"default ≤{SEABED_SPACING:g}λ"
+        if spacing is None:  # the defaults: λ/4 on objects, SEABED_SPACING on the seabed
+            options, guess = {}, 0.0
+        else:
+            options = {"spacing_wavelengths": spacing, "seabed_spacing_wavelengths": spacing}
+            guess = _predict(done, spacing)
+        if guess > args.coherent_cap and spacing is not None:
             rows.append(
                 Row(
                     case,
@@ -392,13 +401,12 @@ def coherent_rows(case: Case, refs: Refs, args) -> list[Row]:
             )
             continue
         t = best_of(
-            lambda s=spacing: render_coherent(
-                case.scene, case.sonar, case.trajectory, spacing_wavelengths=s
-            ),
+            lambda o=options: render_coherent(case.scene, case.sonar, case.trajectory, **o),
             args.repeat,
             args.cap,
         )
-        done.append((spacing, t.best))
+        if spacing is not None:
+            done.append((spacing, t.best))
         md = t.result.metadata
         sides = to_raster_units(t.result).sides
         prof, scale = profile_error(sides, refs.conv.sides, refs.band)
@@ -413,7 +421,7 @@ def coherent_rows(case: Case, refs: Refs, args) -> list[Row]:
                 scale=scale,
                 contrast=contrast(sides, refs.band),
                 noise=speckle_noise(sides, refs.band, n),
-                default=spacing == 0.25,
+                default=spacing is None,
                 notes=(
                     f"{md['n_scatterers'] / 1e6:.3g} M scatterers, {md['n_pairs'] / 1e6:.3g} M "
                     f"pairs, peak {md['peak_memory_bytes'] / 2**20:.0f} MiB; predicted "
@@ -441,6 +449,7 @@ def fine_contrast_row(case: Case, spacing: float, pings: int) -> Row:
             pulse=Pulse.for_range_bin(sonar.range_bin, sonar.sound_speed),
             horizontal_beam=HorizontalBeam.for_track(sonar, case.trajectory),
             spacing_wavelengths=spacing,
+            seabed_spacing_wavelengths=spacing,
         )
     )
     band = Band.of(replace(case, sonar=fine, trajectory=traj))

@@ -24,6 +24,14 @@ case. Times are the best of ``--repeat`` runs; a method stops repeating once its
 The sweep renders one scene's full track at oversample × along_samples × split and prints time
 against error (on the window rows, vs ``ref/8``): the curve that chooses the defaults.
 
+``--coherent`` times the coherent model (Eq. 10) on the bare barrel model (``barrel.wrl``, the
+default scene around a bare model) over ``--coherent-pings`` pings, in one process: the earlier
+path (one embree ray per scatterer, ``visibility="rays"``) and the new one (the GL raster's
+range maps, ``visibility="depth"``) on the same job (λ/4 on the barrel, the default seabed
+spacing), with scatterers/s and their ratio; then the new defaults on their own, and the
+estimate of the earlier default (λ/4 everywhere) that could not finish. ``--coherent-only``
+skips the raster tables.
+
 Usage: ``python tools/bench_render.py [--quick] [--scenes a,b] [--out bench_out/]``.
 """
 
@@ -536,6 +544,79 @@ def _groups(points: list[SweepPoint]) -> dict:
 
 
 # -- main -------------------------------------------------------------------------------------
+# -- coherent model ---------------------------------------------------------------------------
+def coherent_bench(pings: int) -> list[dict]:
+    """Old (embree rays) and new (GL range maps) coherent paths on the bare barrel, side by side.
+
+    Prints one row per run and returns them as dicts.
+    """
+    from sonar_raster.rendering.coherent.model import SEABED_SPACING, render_coherent
+    from sonar_raster.scenes.description import Overrides, load_scene
+
+    barrel = Path(__file__).resolve().parents[1] / "sonar_raster/scenes/data/barrel.wrl"
+    setup = load_scene(str(barrel), Overrides(pings=pings))
+    job = (setup.scene, setup.sonar, setup.trajectory)
+    seabed = min(SEABED_SPACING, 0.5 * setup.sonar.range_bin / setup.sonar.wavelength)
+    same = {"spacing_wavelengths": 0.25, "seabed_spacing_wavelengths": seabed}
+    runs = [
+        ("old: embree rays", {**same, "visibility": "rays"}),
+        ("new: GL range maps", {**same, "visibility": "depth"}),
+        ("new: defaults", {}),
+    ]
+    print(
+        f"\n# coherent, bare barrel ({setup.scene.n_triangles} triangles), {pings} pings, "
+        f"load {os.getloadavg()[0]:.2f}"
+    )
+    head = ("path", "seconds", "scatterers", "visible", "terms", "scatterers/s", "est. s")
+    print(_cline(head))
+    out, images = [], {}
+    for label, options in runs:
+        seconds, image = timed(lambda o=options: render_coherent(*job, **o))
+        md = image.metadata
+        row = {
+            "path": label,
+            "seconds": seconds,
+            "scatterers": md["n_scatterers"],
+            "visible": md["n_visible"],
+            "terms": md["n_pairs"],
+            "scatterers_per_s": md["n_scatterers"] / seconds,
+            "estimated_s": md["estimate"]["seconds"],
+        }
+        images[label] = image
+        out.append(row)
+        print(
+            _cline(
+                (
+                    label,
+                    _fmt(seconds),
+                    f"{row['scatterers']:.3g}",
+                    f"{row['visible']:.3g}",
+                    f"{row['terms']:.3g}",
+                    f"{row['scatterers_per_s']:.3g}",
+                    _fmt(row["estimated_s"]),
+                )
+            )
+        )
+    a, b = (images[label].sides for label, _ in runs[:2])
+    diff = sum(float(np.abs(a[k] - b[k]).sum()) for k in a) / sum(float(a[k].sum()) for k in a)
+    print(
+        f"new / old scatterers/s: {out[1]['scatterers_per_s'] / out[0]['scatterers_per_s']:.2f}×; "
+        f"images differ by {100 * diff:.3g} % relative L1 (visibility at shadow edges)"
+    )
+    from sonar_raster.errors import SonarRasterError
+
+    try:
+        render_coherent(*job, seabed_spacing_wavelengths=0.25, visibility="rays")
+    except SonarRasterError as exc:  # refused before any work: the estimate is the point
+        print(f"earlier default (λ/4 everywhere): {exc}")
+    return out
+
+
+def _cline(cells: tuple[str, ...]) -> str:
+    widths = (20, 9, 11, 11, 11, 13, 8)
+    return " ".join(c.ljust(w) for c, w in zip(cells, widths, strict=True)).rstrip()
+
+
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     bundled = [n for n, _ in list_bundled()]
     ap = parser(__doc__, out=Path("bench_out"))
@@ -568,6 +649,13 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         help="print where a warm GL render of the largest case spends its time",
     )
     ap.add_argument("--backend", choices=("egl", "osmesa"), help="GL backend")
+    ap.add_argument(
+        "--coherent", action="store_true", help="also time the coherent model, old and new paths"
+    )
+    ap.add_argument("--coherent-only", action="store_true", help="time the coherent model only")
+    ap.add_argument(
+        "--coherent-pings", type=int, default=20, help="pings of the coherent runs (20)"
+    )
     args = ap.parse_args(argv)
     default = ["flat_calibration", "cylinder_on_flat", SEABED] if args.quick else bundled + [SEABED]
     args.scenes = args.scenes.split(",") if args.scenes else default
@@ -588,6 +676,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 def main(argv: list[str] | None = None) -> None:
     args = parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
+    if args.coherent_only:
+        write_csv(args.out / "bench_coherent.csv", coherent_bench(args.coherent_pings))
+        return
     bench = Bench(args.repeat, args.cap, args.backend)
     with RasterRenderer(args.backend) as probe:
         info = probe.gl_info
@@ -623,6 +714,8 @@ def main(argv: list[str] | None = None) -> None:
         print(f"\n# where a warm GL render of {big.label} spends its time (s)")
         for stage, seconds in gl_stages(bench, big).items():
             print(f"{stage:>36} {seconds:8.3f}")
+    if args.coherent:
+        write_csv(args.out / "bench_coherent.csv", coherent_bench(args.coherent_pings))
     plot(args.out / "bench_render.png", rows, points, args.sweep_scene)
     print(f"\nwrote {args.out}/bench_render.csv, bench_sweep.csv, bench_render.png")
 

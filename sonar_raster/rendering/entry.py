@@ -34,6 +34,7 @@ def render(
     raster_units: bool = True,
     labels: bool = False,
     progress: bool = False,
+    force: bool = False,
 ) -> SonarImage:
     """Render raw side-scan intensity of ``scene`` seen by ``sonar`` along ``trajectory``.
 
@@ -63,7 +64,11 @@ def render(
     labels : bool
         Raster model only: also return per-pixel object ids (``image.labels``), for datasets.
     progress : bool
-        Show a progress bar (raster and coherent).
+        Show a progress bar (every model); the reference and coherent models also print their
+        estimated size and time first.
+    force : bool
+        Reference and coherent models: run even when the job is estimated over an hour or over
+        the machine's memory (otherwise refused with one line naming what lowers it).
 
     Returns
     -------
@@ -78,13 +83,12 @@ def render(
     if model == "reference":
         from .reference import render_reference
 
-        return render_reference(scene, sonar, trajectory)
+        return render_reference(scene, sonar, trajectory, progress=progress, force=force)
     if model == "coherent":
         from .coherent.model import render_coherent, to_raster_units
 
-        image = render_coherent(
-            scene, sonar, trajectory, pulse=pulse, progress=progress, **dict(coherent or {})
-        )
+        options = {"backend": backend, "force": force, **dict(coherent or {})}
+        image = render_coherent(scene, sonar, trajectory, pulse=pulse, progress=progress, **options)
         if raster_units and image.metadata["facet_area_m2"] > 0:
             image = to_raster_units(image)
         return image

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._progress import Estimate, announce, check_job, progress_bar
 from ..errors import SonarRasterError
 from ..image import SonarImage
 from ..scene import Scene
@@ -35,6 +36,8 @@ log = logging.getLogger(__name__)
 
 #: Patches per vectorised chunk (bounds memory to a few hundred MB).
 _PATCH_CHUNK = 1 << 20
+#: Seconds per patch on the 2-core CI machine (generation, one embree ray, deposit).
+_COST_PATCH = 1.0e-6
 #: Subdivision-grid rows per block of triangles.
 _ROW_CHUNK = 1 << 19
 
@@ -77,6 +80,8 @@ def render_reference(
     trajectory: Trajectory,
     *,
     patch_size: float | None = None,
+    progress: bool = False,
+    force: bool = False,
 ) -> SonarImage:
     """Render raw side-scan intensity by summing small visible surface patches.
 
@@ -90,6 +95,10 @@ def render_reference(
         Ping poses; grouped into straight segments with tolerance ``sonar.range_bin / 4``.
     patch_size : float, optional
         Largest patch edge in metres; default ``sonar.range_bin / 4``.
+    progress : bool
+        Print the estimate (patches, time) and show a progress bar with ETA.
+    force : bool
+        Run even when the estimate exceeds an hour.
 
     Returns
     -------
@@ -104,7 +113,8 @@ def render_reference(
     TypeError
         If an argument has the wrong type.
     SonarRasterError
-        If ``patch_size`` is not a positive number, or no ray caster is available.
+        If ``patch_size`` is not a positive number, no ray caster is available, or the job is
+        estimated over an hour (unless ``force``).
     """
     check_inputs(scene, sonar, trajectory)
     size = sonar.range_bin / 4.0 if patch_size is None else patch_size
@@ -113,12 +123,32 @@ def render_reference(
     start = time.perf_counter()
     local = scene.bounds.mean(axis=0)
     surface = _surface(scene, local, float(size))
+    frames = [
+        segment_frame(segment, trajectory, local, size)
+        for segment in trajectory.segments(sonar.range_bin / 4.0)
+    ]
+    work = [_patch_count(surface, sonar, frame) for frame in frames]
+    estimate = Estimate(
+        f"reference render of {trajectory.n_pings} pings",
+        {"patches": float(sum(work)), "rays": float(sum(work))},
+        seconds=_COST_PATCH * float(sum(work)),
+        work=float(sum(work)),
+    )
+    check_job(
+        estimate,
+        "lower --pings or --range, or raise --range-bin (patches are a quarter bin), or use "
+        "the raster model",
+        force=force,
+    )
+    if progress:
+        announce(estimate)
     caster = ray_caster(scene.vertices - local, scene.faces)
     acc = {side: np.zeros((trajectory.n_pings, sonar.n_bins)) for side in sonar.sides}
     stats = _Stats()
-    for segment in trajectory.segments(sonar.range_bin / 4.0):
-        frame = segment_frame(segment, trajectory, local, size)
-        _render_segment(surface, caster, sonar, frame, acc, stats)
+    with progress_bar(estimate.work, "reference", progress) as bar:
+        for frame, count in zip(frames, work, strict=True):
+            _render_segment(surface, caster, sonar, frame, acc, stats)
+            bar.update(count)
     elapsed = time.perf_counter() - start
     log.info(
         "reference: %d patches, %d rays in %.2f s (%.3g patches/s)",
@@ -133,9 +163,27 @@ def render_reference(
         "n_patches": stats.patches,
         "n_rays": stats.rays,
         "time_s": elapsed,
+        "estimate": estimate.to_dict(),
     }
     sides = {side: a.astype(np.float32) for side, a in acc.items()}
     return SonarImage(sides=sides, sonar=sonar, metadata=metadata)
+
+
+def _patch_count(surface: Surface, sonar: Sonar, frame: Frame) -> float:
+    """Patches of a segment, estimated: each face overlapping its box, times its share inside.
+
+    The share is that of the face's along-track extent inside the box's (the slab).
+    """
+    bounds = _bounds(sonar, frame)
+    proj = project(surface.tri, frame.origin, frame.axes)
+    ids = np.flatnonzero(overlaps(proj, bounds))
+    t0 = proj[ids, 0, 0]
+    t = np.stack([t0, t0 + proj[ids, 0, 1], t0 + proj[ids, 0, 2]], axis=1)
+    lo, hi = t.min(axis=1), t.max(axis=1)
+    span = hi - lo
+    inside = np.minimum(hi, bounds[0, 1]) - np.maximum(lo, bounds[0, 0])
+    share = np.where(span > 1e-12, np.clip(inside / np.maximum(span, 1e-12), 0.0, 1.0), 1.0)
+    return float(np.sum(surface.n_sub[ids].astype(np.float64) ** 2 * share))
 
 
 def _surface(scene: Scene, local: np.ndarray, patch_size: float) -> Surface:

@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from ..._checks import non_negative, positive
+from ..._progress import Estimate, announce, check_job, progress_bar
 from ...errors import SonarRasterError
 from ...image import SonarImage
 from ...scene import Scene
@@ -63,6 +64,18 @@ log = logging.getLogger(__name__)
 
 METHODS = ("fast", "direct")
 LAWS = ("lambert", "eq10")
+VISIBILITY = ("depth", "rays")
+#: Default scatterer spacing on the seabed: this many wavelengths, but no coarser than
+#: ``_SEABED_BINS`` range bins (two scatterers per bin each way); random-phase seabeds keep their
+#: mean level at such spacings (tools/bench_accuracy.py; docs/coherent.md).
+SEABED_SPACING = 4.0
+_SEABED_BINS = 0.5
+#: Travel between the rows of the visibility range maps, in range bins.
+_MAP_ROW_BINS = 1.0
+#: Measured cost on the 2-core CI machine (tools/bench_render.py --coherent): seconds per
+#: scatterer generated in reach, and per scatterer-ping term deposited.
+_COST_SCATTERER = 0.3e-6
+_COST_PAIR = 0.2e-6
 #: Scatterers beyond ``max_range`` + this many range bins are left out (their compressed main
 #: lobes still reach the last bins).
 RANGE_MARGIN_BINS = 3.0
@@ -227,6 +240,10 @@ def render_coherent(
     scattering: str = "lambert",
     samples_per_bin: int | None = None,
     progress: bool = False,
+    seabed_spacing_wavelengths: float | None = None,
+    visibility: str = "depth",
+    backend: str | None = None,
+    force: bool = False,
 ) -> SonarImage:
     """Render raw side-scan intensity with the coherent point-scatterer model (Eq. 10).
 
@@ -260,7 +277,20 @@ def render_coherent(
     samples_per_bin : int, optional
         Fine delay samples per range bin (default: four times the band's Nyquist rate, >= 4).
     progress : bool
-        Show a progress bar over the ping blocks.
+        Print the job's estimate (scatterers, rays, time) and show a progress bar with ETA.
+    seabed_spacing_wavelengths : float, optional
+        Scatterer spacing on the seabed (faces of parts named "seabed"), in wavelengths;
+        default ``SEABED_SPACING`` (4) wavelengths or half a range bin, whichever is finer,
+        and never finer than ``spacing_wavelengths``. Random-phase seabeds keep their
+        mean level at coarse spacing (``tools/bench_accuracy.py``); objects keep
+        ``spacing_wavelengths``.
+    visibility : {"depth", "rays"}
+        "depth": from the GL raster's first-hit range maps (:mod:`.visibility`; no ray caster
+        needed); "rays": one embree (or trimesh) ray per scatterer, the earlier path.
+    backend : {"egl", "osmesa"}, optional
+        GL backend of the range maps.
+    force : bool
+        Run even when the estimate exceeds an hour or the machine's memory.
 
     Returns
     -------
@@ -276,9 +306,11 @@ def render_coherent(
     TypeError
         If an argument has the wrong type.
     SonarRasterError
-        On an invalid setting, or when no ray caster is available.
+        On an invalid setting, when no ray caster is available (``visibility="rays"``), or
+        when the job is estimated over an hour or over the machine's memory (unless
+        ``force``).
     """
-    from ..fan import Surface, check_inputs, ray_caster, segment_frame
+    from ..fan import check_inputs, segment_frame
 
     check_inputs(scene, sonar, trajectory)
     pulse = Pulse.for_range_bin(sonar.range_bin, sonar.sound_speed) if pulse is None else pulse
@@ -286,19 +318,26 @@ def render_coherent(
         HorizontalBeam.for_track(sonar, trajectory) if horizontal_beam is None else horizontal_beam
     )
     _check_settings(sonar, pulse, beam_h, method, scattering)
+    if visibility not in VISIBILITY:
+        raise SonarRasterError(f"visibility must be one of {VISIBILITY}, got {visibility!r}")
     spacing = positive("spacing_wavelengths", spacing_wavelengths) * sonar.wavelength
+    if seabed_spacing_wavelengths is None:
+        coarse = min(SEABED_SPACING * sonar.wavelength, _SEABED_BINS * sonar.range_bin)
+        seabed_spacing = max(coarse, spacing)
+    else:
+        seabed_spacing = (
+            positive("seabed_spacing_wavelengths", seabed_spacing_wavelengths) * sonar.wavelength
+        )
     jitter = non_negative("jitter_wavelengths", jitter_wavelengths) * sonar.wavelength
     if not (isinstance(chunk, (int, np.integer)) and chunk >= 1):
         raise SonarRasterError(f"chunk must be a positive integer, got {chunk!r}")
     start = time.perf_counter()
     grid = _grid(sonar, pulse, samples_per_bin)
     local = scene.bounds.mean(axis=0)
-    surface = scatter_surface(scene, local, spacing)
+    surface = scatter_surface(scene, local, face_spacing(scene, spacing, seabed_spacing))
     sides = tuple(s for s in SIDES if s in sonar.sides)
     work = _Work(
         surface=surface,
-        caster=ray_caster(scene.vertices - local, scene.faces),
-        ray_surface=Surface(surface.tri, surface.normal, surface.n_sub, surface.facet_area),
         grid=grid,
         model=replace(
             _model(sonar, beam_h, scattering), area_ref=spacing**2 if jitter > 0 else 0.0
@@ -308,6 +347,7 @@ def render_coherent(
         seed=int(seed),
         chunk=int(chunk),
         method=method,
+        visibility=visibility,
     )
     out = {side: np.zeros((trajectory.n_pings, sonar.n_bins)) for side in sides}
     stats = _Stats()
@@ -324,15 +364,34 @@ def render_coherent(
         pings = (trajectory.positions[sl] - local - frame.origin) @ frame.axes.T
         for j0 in range(0, segment.count, block):
             j1 = min(segment.count, j0 + block)
-            blocks.append((frame, segment.first + j0, pings[j0:j1], frame.roll[j0:j1]))
+            bounds, off = _block_bounds(work.model, pings[j0:j1], sides, jitter)
+            blocks.append(
+                _Block(
+                    segment, frame, segment.first + j0, pings[j0:j1], frame.roll[j0:j1], bounds, off
+                )
+            )
+    estimate = _estimate(work, blocks, trajectory, block)
+    peak = _memory_estimate(surface, grid, len(sides), block, int(chunk), work.model, trajectory)
+    estimate = estimate.with_memory(peak)
+    check_job(
+        estimate,
+        lower="raise the scatterer spacing (--scatterer-spacing, now "
+        f"{float(spacing_wavelengths):g} wavelengths on objects), or lower --pings",
+        force=force,
+    )
     if progress:
-        from tqdm import tqdm
-
-        blocks = tqdm(blocks, desc="coherent", unit="block", disable=None, leave=False)
-    for frame, first, pings, roll in blocks:
-        power = _render_block(work, frame, pings, roll, stats)
-        for slot, side in enumerate(sides):
-            out[side][first : first + len(pings)] = power[:, slot]
+        announce(estimate)
+    casters: dict[str, Any] = {"backend": backend}
+    try:
+        with progress_bar(estimate.work, "coherent", progress) as bar:
+            for item in blocks:
+                power = _render_block(work, item, scene, sonar, local, casters, stats)
+                for slot, side in enumerate(sides):
+                    out[side][item.first : item.first + len(item.pings)] = power[:, slot]
+                bar.update(item.work)
+    finally:
+        if "gl" in casters:
+            casters["gl"].release()
     elapsed = time.perf_counter() - start
     log.info(
         "coherent: %d scatterers, %d visible, %d pairs in %.2f s (%.3g scatterers/s)",
@@ -362,9 +421,10 @@ def render_coherent(
         "n_rays": stats.rays,
         "n_visible": stats.visible,
         "n_pairs": stats.pairs,
-        "peak_memory_bytes": _memory_estimate(
-            surface, grid, len(sides), block, int(chunk), work.model, trajectory
-        ),
+        "peak_memory_bytes": peak,
+        "visibility": visibility,
+        "seabed_spacing_m": seabed_spacing,
+        "estimate": estimate.to_dict(),
         "time_s": elapsed,
         "units": "Eq. 10 intensity |sum a^2/lambda ...|^2 with 1/r^4 spreading (to_raster_units)",
     }
@@ -391,8 +451,6 @@ class _Work:
     """Everything a ping block needs besides its pings."""
 
     surface: ScatterSurface
-    caster: Any
-    ray_surface: Any
     grid: EchoGrid
     model: _Model
     sides: tuple[str, ...]
@@ -400,31 +458,158 @@ class _Work:
     seed: int
     chunk: int
     method: str
+    visibility: str
+
+
+@dataclass(frozen=True)
+class _Block:
+    """A block of pings of one segment: where they are and the box their scatterers lie in."""
+
+    segment: Any
+    frame: Any
+    first: int
+    pings: np.ndarray  # (p, 3) frame coordinates
+    roll: np.ndarray
+    bounds: np.ndarray
+    off: float
+    work: float = 0.0  # estimated seconds (progress bar units)
+
+
+def face_spacing(scene: Scene, spacing: float, seabed_spacing: float) -> np.ndarray:
+    """Scatterer spacing of every face, metres: ``seabed_spacing`` on parts named "seabed".
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene (``names`` and ``object_id`` say which faces are seabed).
+    spacing, seabed_spacing : float
+        Spacing on objects and on the seabed, metres.
+    """
+    seabed = np.array([name == "seabed" for name in scene.names] or [False])
+    is_seabed = seabed[np.clip(scene.object_id, 0, len(seabed) - 1)]
+    return np.where(is_seabed, seabed_spacing, spacing)
 
 
 def _render_block(
-    work: _Work, frame: Any, pings: np.ndarray, roll: np.ndarray, stats: _Stats
+    work: _Work,
+    item: _Block,
+    scene: Scene,
+    sonar: Sonar,
+    local: np.ndarray,
+    casters: dict[str, Any],
+    stats: _Stats,
 ) -> np.ndarray:
     """Intensity of a block of pings of one segment, shape (pings, sides, bins).
 
-    ``pings`` are the block's ping positions in the segment frame, ``roll`` their roll angles.
-    Scatterers are generated only inside the block's reach, culled, ray-tested, and their
-    terms for every ping of the block deposited on the block's fine grid.
+    Scatterers are generated only inside the block's reach, culled, tested for visibility,
+    jittered, and their terms for every ping of the block deposited on the block's fine grid.
     """
-    grid, sides = work.grid, work.sides
-    acc = grid.accumulator(len(pings) * len(sides), work.method)
-    bounds, off = _block_bounds(work.model, pings, sides, work.jitter)
-    for sc in generate(
-        work.surface, frame.axes, frame.origin, bounds, work.chunk, work.jitter, work.seed
-    ):
-        sc = _cull(sc, work.model, sides, JITTER_CLIP * math.sqrt(3.0) * work.jitter + off, stats)
+    grid, sides, frame = work.grid, work.sides, item.frame
+    acc = grid.accumulator(len(item.pings) * len(sides), work.method)
+    test = _visibility_test(work, item, scene, sonar, local, casters, stats)
+    slack = JITTER_CLIP * math.sqrt(3.0) * work.jitter + item.off
+    for sc in generate(work.surface, frame.axes, frame.origin, item.bounds, work.chunk):
+        sc = _cull(sc, work.model, sides, slack, stats)
         if len(sc.face) == 0:
             continue
-        sc = _visible_only(sc, work.caster, work.ray_surface, frame, stats)
-        row, x, c = _pairs(sc, pings, roll, sides, work.model, grid, off)
+        vis = test(sc)
+        stats.rays += len(vis) if work.visibility == "rays" else 0
+        stats.visible += int(vis.sum())
+        sc = sc.take(np.flatnonzero(vis))
+        stats.area += float(sc.facet_area.sum())
+        stats.area2 += float((sc.facet_area**2).sum())
+        sc = sc.jittered(frame.axes, work.jitter, work.seed)
+        row, x, c = _pairs(sc, item.pings, item.roll, sides, work.model, grid, item.off)
         stats.pairs += len(row)
         grid.add(acc, row, x, c)
-    return grid.intensity(acc).reshape(len(pings), len(sides), grid.n_bins)
+    return grid.intensity(acc).reshape(len(item.pings), len(sides), grid.n_bins)
+
+
+def _visibility_test(work, item, scene, sonar, local, casters, stats):
+    """A function of a scatterer chunk giving each scatterer's visibility."""
+    if work.visibility == "rays":
+        from ..fan import Surface, ray_caster, visible
+
+        if "rays" not in casters:
+            surface = work.surface
+            casters["rays"] = (
+                ray_caster(scene.vertices - local, scene.faces),
+                Surface(surface.tri, surface.normal, surface.n_sub, surface.facet_area),
+            )
+        caster, ray_surface = casters["rays"]
+        frame = item.frame
+
+        def by_rays(sc: Scatterers) -> np.ndarray:
+            t, x, v = sc.nominal.T
+            r = np.hypot(x, v)
+            origins = frame.origin + t[:, None] * frame.along
+            dirs = (x[:, None] * frame.starboard + v[:, None] * frame.up) / r[:, None]
+            return visible(caster, ray_surface, origins, dirs, r, sc.face)
+
+        return by_rays
+    from ..gl.raster import RasterRenderer
+    from .visibility import RangeMaps
+
+    if "gl" not in casters:
+        casters["gl"] = RasterRenderer(casters.get("backend"))
+    t_lo, t_hi = (float(b) for b in item.bounds[0])
+    maps = RangeMaps(
+        casters["gl"],
+        scene,
+        sonar,
+        item.segment,
+        work.sides,
+        t_lo,
+        t_hi,
+        _MAP_ROW_BINS * sonar.range_bin,
+        local + 0.0,
+    )
+    stats.rays += maps.rays
+    return lambda sc: maps.visible(sc.nominal)
+
+
+def _estimate(work: _Work, blocks: list[_Block], trajectory: Trajectory, block: int) -> Estimate:
+    """Scatterers, scatterer-ping terms and seconds of a render, before generating anything.
+
+    Scatterers: per block, each face overlapping the block's box contributes its facets times
+    the share of its along-track extent inside the box. Terms: each scatterer meets the pings
+    within the horizontal beam's reach at mid range. Seconds: ``_COST_*`` per item.
+    """
+    from ..patches import overlaps, project
+
+    surface, model = work.surface, work.model
+    count = surface.n_sub.astype(np.float64) ** 2
+    u = model.u_cut
+    reach = 0.5 * model.r_limit * u / math.sqrt(1.0 - u * u)
+    spacing = max(trajectory.typical_spacing, 1e-9)
+    per = min(float(block), 2.0 * reach / spacing + 1.0)
+    scatterers = 0.0
+    blocks_out = []
+    for item in blocks:
+        proj = project(surface.tri, item.frame.origin, item.frame.axes)
+        ids = np.flatnonzero(overlaps(proj, item.bounds))
+        t = proj[ids, 0, 0][:, None] + np.stack(
+            [np.zeros(len(ids)), proj[ids, 0, 1], proj[ids, 0, 2]], axis=1
+        )
+        lo, hi = t.min(axis=1), t.max(axis=1)
+        b_lo, b_hi = item.bounds[0]
+        share = (np.minimum(hi, b_hi) - np.maximum(lo, b_lo)) / np.maximum(hi - lo, 1e-12)
+        share = np.where(hi - lo > 1e-12, np.clip(share, 0.0, 1.0), 1.0)
+        n = float(np.sum(count[ids] * share))
+        pings = min(float(len(item.pings)), per)
+        seconds = n * (_COST_SCATTERER + pings * _COST_PAIR)
+        scatterers += n
+        blocks_out.append(seconds)
+    for k, seconds in enumerate(blocks_out):
+        blocks[k] = replace(blocks[k], work=seconds)
+    total = float(sum(blocks_out))
+    pairs = total / _COST_PAIR - scatterers * _COST_SCATTERER / _COST_PAIR if total else 0.0
+    return Estimate(
+        f"coherent render of {trajectory.n_pings} pings",
+        {"scatterers": scatterers, "scatterer-ping terms": max(pairs, 0.0)},
+        seconds=total,
+        work=total,
+    )
 
 
 def _check_settings(
@@ -499,23 +684,6 @@ def _cull(
     stats.scatterers += int(np.count_nonzero(keep))
     facing = -(x * sc.normal[:, 1] + v * sc.normal[:, 2]) > 0
     return sc.take(np.flatnonzero(keep & facing))
-
-
-def _visible_only(sc: Scatterers, caster, ray_surface, frame, stats: _Stats) -> Scatterers:
-    """One ray per scatterer from the track point abeam of it to its facet centroid."""
-    from ..fan import visible
-
-    t, x, v = sc.nominal.T
-    r = np.hypot(x, v)
-    origins = frame.origin + t[:, None] * frame.along
-    dirs = (x[:, None] * frame.starboard + v[:, None] * frame.up) / r[:, None]
-    vis = visible(caster, ray_surface, origins, dirs, r, sc.face)
-    stats.rays += len(vis)
-    stats.visible += int(vis.sum())
-    out = sc.take(np.flatnonzero(vis))
-    stats.area += float(out.facet_area.sum())
-    stats.area2 += float((out.facet_area**2).sum())
-    return out
 
 
 def _pairs(

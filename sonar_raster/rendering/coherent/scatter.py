@@ -61,11 +61,22 @@ class ScatterSurface:
     reflectivity: np.ndarray
 
 
-def scatter_surface(scene: Scene, local: np.ndarray, spacing: float) -> ScatterSurface:
-    """Subdivide ``scene`` (shifted by ``-local``) for a scatterer spacing in metres."""
+def scatter_surface(scene: Scene, local: np.ndarray, spacing: float | np.ndarray) -> ScatterSurface:
+    """Subdivide ``scene`` (shifted by ``-local``) for a scatterer spacing in metres.
+
+    Parameters
+    ----------
+    scene : Scene
+        The triangles.
+    local : ndarray, shape (3,)
+        Local origin subtracted from the vertices, metres.
+    spacing : float or ndarray, shape (m,)
+        Scatterer spacing, metres: one value, or one per face (e.g. coarser on the seabed).
+    """
     tri = scene.triangles() - local
     normal, area = scene.face_normals_areas()
     edges = np.linalg.norm(tri[:, [1, 2, 0]] - tri, axis=2).max(axis=1)
+    spacing = np.broadcast_to(np.asarray(spacing, dtype=np.float64), area.shape)
     n = np.maximum(np.sqrt(area) / spacing, edges / (2.0 * spacing))
     n_sub = np.maximum(1, np.ceil(n - 1e-9)).astype(np.int64)
     return ScatterSurface(
@@ -81,6 +92,8 @@ class Scatterers:
     ----------
     face : ndarray, shape (k,), int64
         Parent face.
+    cell : ndarray, shape (k,), int64
+        Facet index ``i n + j`` on the face's subdivision grid (the jitter hash's key).
     nominal : ndarray, shape (k, 3)
         Facet centroid, metres (visibility and culling use it).
     position : ndarray, shape (k, 3)
@@ -94,6 +107,7 @@ class Scatterers:
     """
 
     face: np.ndarray
+    cell: np.ndarray
     nominal: np.ndarray
     position: np.ndarray
     normal: np.ndarray
@@ -104,8 +118,23 @@ class Scatterers:
         """The scatterers selected by an index or mask array."""
         return Scatterers(*(getattr(self, f)[keep] for f in _FIELDS))
 
+    def jittered(self, axes: np.ndarray, jitter: float, seed: int) -> Scatterers:
+        """The same scatterers moved by their jitter (rms ``jitter`` metres per axis)."""
+        if jitter <= 0 or len(self.face) == 0:
+            return self
+        moved = self.nominal + _rotate(jitter * _gaussian3(self.face, self.cell, seed), axes)
+        return Scatterers(
+            self.face,
+            self.cell,
+            self.nominal,
+            moved,
+            self.normal,
+            self.facet_area,
+            self.reflectivity,
+        )
 
-_FIELDS = ("face", "nominal", "position", "normal", "facet_area", "reflectivity")
+
+_FIELDS = ("face", "cell", "nominal", "position", "normal", "facet_area", "reflectivity")
 
 
 def generate(
@@ -114,8 +143,6 @@ def generate(
     origin: np.ndarray,
     bounds: np.ndarray,
     chunk: int,
-    jitter: float,
-    seed: int,
 ) -> Iterator[Scatterers]:
     """Yield the scatterers whose facet centroid lies in ``bounds``, about ``chunk`` at a time.
 
@@ -131,10 +158,6 @@ def generate(
         Box in frame coordinates (min, max per axis), metres.
     chunk : int
         Scatterers per chunk (whole runs, so a chunk may exceed it by one row).
-    jitter : float
-        Rms jitter per axis, metres (0: scatterers at facet centroids).
-    seed : int
-        Seed of the jitter hash.
     """
     proj = project(surface.tri, origin, axes, _rotate)
     ids = np.flatnonzero(overlaps(proj, bounds))
@@ -142,7 +165,7 @@ def generate(
         return
     normal = _rotate(surface.normal, axes)
     for runs in runs_in_box(proj, surface.n_sub, ids, bounds, row_block=_ROW_BLOCK, chunk=chunk):
-        yield _expand(surface, normal, ids, runs, axes, jitter, seed)
+        yield _expand(surface, normal, ids, runs)
 
 
 def _rotate(v: np.ndarray, axes: np.ndarray) -> np.ndarray:
@@ -155,24 +178,18 @@ def _expand(
     normal: np.ndarray,
     ids: np.ndarray,
     runs: Runs,
-    axes: np.ndarray,
-    jitter: float,
-    seed: int,
 ) -> Scatterers:
     """Materialise the facets of some runs (``runs.tri`` indexes ``ids``) as scatterers."""
     run, offset = runs.cells()
     j = runs.lo[run] + offset
     nominal = runs.base[run] + runs.slope[run] * j[:, None].astype(np.float64)
     face = ids[runs.tri[run]]
-    n = surface.n_sub[face]
-    position = nominal
-    if jitter > 0:
-        cell = runs.i[run] * n + j
-        position = nominal + _rotate(jitter * _gaussian3(face, cell, seed), axes)
+    cell = runs.i[run] * surface.n_sub[face] + j
     return Scatterers(
         face=face,
+        cell=cell,
         nominal=nominal,
-        position=position,
+        position=nominal,
         normal=normal[face],
         facet_area=surface.facet_area[face],
         reflectivity=surface.reflectivity[face],

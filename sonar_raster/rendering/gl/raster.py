@@ -687,6 +687,168 @@ class RasterRenderer:
             finally:
                 col_tex.release()
 
+    # -- range maps (visibility for the CPU models) ----------------------------------------
+    def fan_ranges(
+        self,
+        scene: Scene,
+        sonar: Sonar,
+        segment: Segment,
+        side: str,
+        t0: float,
+        dt: float,
+        rows: int,
+        origin: np.ndarray,
+    ) -> tuple[np.ndarray, Warp, int]:
+        """Slant range of the first surface along every ray of a fan swept along a segment.
+
+        Pass 1 alone (no accumulation): row ``i`` is the fan at travel ``t0 + i dt`` from the
+        segment's first ping, column ``c`` the look angle of the warp's column ``c``; the depth
+        test keeps the nearest hit, so a surface point at slant range r is hidden when the rays
+        around it all stop short of r. Used by the coherent model for its visibility.
+
+        Parameters
+        ----------
+        scene, sonar : Scene, Sonar
+            What is drawn, and the range reach and sampling (``settings.oversample`` columns per
+            range bin over flat ground).
+        segment : Segment
+            The straight piece of track whose fans are swept.
+        side : {"port", "starboard"}
+            The side looked at.
+        t0, dt : float
+            Travel of row 0 from the segment's first ping, and between rows, metres (dt > 0).
+        rows : int
+            Rows, 1 to ``MAX_TEXTURE``.
+        origin : ndarray, shape (3,)
+            Local origin subtracted from the scene (float64) before upload, world metres.
+
+        Returns
+        -------
+        ranges : ndarray, shape (rows, columns), float32
+            Slant range of the nearest hit, metres; +inf where a ray meets nothing.
+        warp : Warp
+            The look-angle warp of the columns.
+        columns : int
+            Column count (the warp's ``total``).
+        """
+        if not (dt > 0 and 1 <= rows <= MAX_TEXTURE):
+            raise SonarRasterError(f"fan_ranges needs dt > 0 and 1..{MAX_TEXTURE} rows")
+        piece = replace(
+            segment,
+            origin=segment.origin + t0 * segment.along,
+            spacing=float(dt),
+            width=float(dt),
+            count=int(rows),
+        )
+        with self.ctx:
+            self._upload(scene, origin, self.settings.max_edge or 20.0 * sonar.range_bin)
+            draw = next(d for d in self._plan_segment(scene, sonar, piece, 0.0) if d.side == side)
+            tables = self._column_tables(draw, sonar)
+            self._framebuffer(max(t[1] for t in tables), rows, False)
+            geometry = self._geometry_for(draw, sonar, origin)
+            out = []
+            try:
+                for first, count, total, table in tables:
+                    if geometry["n_faces"] == 0:
+                        out.append(np.full((rows, count), np.inf, np.float32))
+                        continue
+                    out.append(
+                        self._draw_ranges(
+                            draw, (first, count, total, table), origin, sonar, geometry
+                        )
+                    )
+            finally:
+                self._release_subset(geometry)
+        return np.concatenate(out, axis=1), draw.warp, tables[0][2]
+
+    def _plan_segment(self, scene: Scene, sonar: Sonar, seg: Segment, roll: float) -> list[_Draw]:
+        """The draws (one per side) of one segment with its own rows (``seg.count``)."""
+        z_top = float(scene.bounds[1, 2])
+        altitude = float(seg.origin[2] - scene.ground_z)
+        reach = sonar.max_range + 8.0 * sonar.range_bin
+        alpha_top = math.asin(min(1.0, max(-1.0, (float(seg.origin[2]) - z_top) / reach)))
+        warp = Warp.make(altitude, sonar.max_range, alpha_top, self.settings.near_nadir)
+        draws = []
+        for side in sonar.sides:
+            sign = 1.0 if side == "starboard" else -1.0
+            axis_side = sign * seg.starboard
+            det = float(np.linalg.det(np.stack([seg.fore, axis_side, seg.up])))
+            motion = np.array([seg.along @ seg.fore, seg.along @ axis_side, seg.along @ seg.up])
+            draws.append(
+                _Draw(
+                    seg,
+                    side,
+                    axis_side,
+                    motion,
+                    det,
+                    warp,
+                    sonar.tilt + sign * roll,
+                    seg.count,
+                    seg.spacing,
+                )
+            )
+        return draws
+
+    def _draw_ranges(
+        self, draw: _Draw, tile: tuple, origin: np.ndarray, sonar: Sonar, geometry: dict
+    ) -> np.ndarray:
+        """Pass 1 of one column tile; the sample targets' slant ranges (inf: no hit)."""
+        ctx = self.ctx
+        seg = draw.segment
+        first, count, total, table = tile
+        prog = self._program("samples", False)
+        vao = self._vao(geometry, False)
+        rho_lo_all, rho_hi_all = draw.warp.rho_range
+        d_rho = (rho_hi_all - rho_lo_all) / total
+        uniforms = {
+            "seg_origin": tuple((seg.origin - origin).astype("f4")),
+            "axis_along": tuple(seg.fore),
+            "motion": tuple(draw.motion),
+            "axis_side": tuple(draw.axis_side),
+            "axis_up": tuple(seg.up),
+            "warp_h": draw.warp.h,
+            "warp_c": draw.warp.c,
+            "alpha0": draw.warp.alpha0,
+            "rho0": draw.warp.rho0,
+            "slope0": draw.warp.slope0,
+            "row_scale": 2.0 / (draw.spacing * draw.rows),
+            "row_offset": 1.0 / draw.rows - 1.0,
+            "far_range": 1.5 * sonar.max_range,
+            "alpha_span_max": math.pi,
+            "spacing": draw.spacing,
+            "rows_per_ping": 1.0,
+            "row_width": seg.width,
+            "frame_sign": draw.frame_sign,
+            "rho_lo": rho_lo_all + first * d_rho,
+            "rho_hi": rho_lo_all + (first + count) * d_rho,
+        }
+        for name, value in uniforms.items():
+            if name in prog:
+                prog[name].value = value
+        geometry["faces"].bind_to_storage_buffer(0)
+        ctx.enable_direct(_GL_DEPTH_CLAMP)
+        fbo = self._targets["fbo"]
+        col_tex = ctx.texture((count, 1), 4, table.tobytes(), dtype="f4")
+        try:
+            fbo.use()
+            fbo.viewport = (0, 0, count, draw.rows)
+            fbo.clear(depth=1.0, viewport=(0, 0, count, draw.rows))
+            ctx.enable(ctx.DEPTH_TEST)
+            col_tex.use(location=1)
+            prog["columns"].value = 1
+            vao.render(mode=ctx.TRIANGLES)
+            viewport = (0, 0, count, draw.rows)
+            color = np.frombuffer(
+                fbo.read(viewport=viewport, components=4, dtype="f4"), dtype=np.float32
+            ).reshape(draw.rows, count, 4)[:, :, 0]
+            depth = np.frombuffer(
+                fbo.read(viewport=viewport, components=1, attachment=-1, dtype="f4"),
+                dtype=np.float32,
+            ).reshape(draw.rows, count)
+        finally:
+            col_tex.release()
+        return np.where(depth < 1.0, color, np.float32(np.inf)).astype(np.float32)
+
     # -- culling ----------------------------------------------------------------------------
     def _geometry_for(self, draw: _Draw, sonar: Sonar, origin: np.ndarray) -> dict[str, Any]:
         """The uploaded scene, or only its triangles that can reach this draw's image.
