@@ -148,15 +148,42 @@ def fit_beam(real: RealPass, altitudes: np.ndarray, window: slice, footprint: bo
     return best
 
 
+#: The real wreck's shadow (starboard rows and bins holding its core) and the seabed beside it.
+SHADOW_ROWS = (190, 340)
+SHADOW_BINS = (380, 600)
+BESIDE_BINS = (650, 900)
+#: A wreck-like block for the simulation: along-track rows, slant bin of its near face, size (m).
+WRECK_BLOCK = {"rows": (195, 335), "near_bin": 390, "across_m": 2.0, "height_m": 1.5}
+
+
+def wreck_block(real: RealPass, altitudes: np.ndarray):
+    """A box standing where the real wreck stands (starboard), casting a shadow of its size."""
+    from sonar_raster.scene import MeshPart
+    from sonar_raster.scenes.objects import box
+
+    rows, block = WRECK_BLOCK["rows"], WRECK_BLOCK
+    h = float(np.median(altitudes[rows[0] : rows[1]]))
+    r = (block["near_bin"] + 0.5) * real.range_bin
+    x0 = math.sqrt(max(r**2 - h**2, 1.0))
+    length = (rows[1] - rows[0]) * real.ping_spacing
+    vertices, faces = box((block["across_m"], length, block["height_m"]))
+    centre = [x0 + block["across_m"] / 2, (rows[0] + rows[1]) / 2 * real.ping_spacing, 0.0]
+    centre[2] = block["height_m"] / 2
+    return MeshPart(np.asarray(vertices) + centre, np.asarray(faces), 0.9, "wreck block")
+
+
 def simulate(real: RealPass, altitudes: np.ndarray, args: argparse.Namespace, beam, tilt):
-    """Render the flat seabed along the real altitudes, then apply the effects."""
-    water_ratio = water_column_ratio(real)
-    from sonar_raster import Effects, Sonar, Trajectory, apply_effects, build_scene
+    """Render a flat sandy seabed (and a wreck-like block) along the real altitudes with the
+    Marine Sonic preset's sonar at the file's range and bins, then apply the preset's effects
+    (``--along-beam-deg``/``--range-resolution``/``--noise-db`` replace its figures)."""
+    from sonar_raster import Trajectory, apply_effects, build_scene
+    from sonar_raster.effects.presets import preset
     from sonar_raster.rendering.gl.raster import render_raster
     from sonar_raster.scene import MeshPart
     from sonar_raster.scenes.sediments import material_reflectivity
     from sonar_raster.sonar import BeamPattern
 
+    p = preset(args.sensor)
     n_pings = len(altitudes)
     length = n_pings * real.ping_spacing
     half = real.max_range + 5.0
@@ -166,30 +193,23 @@ def simulate(real: RealPass, altitudes: np.ndarray, args: argparse.Namespace, be
     seabed = MeshPart(
         v, np.array([[0, 1, 2], [0, 2, 3]]), material_reflectivity("sand"), "seabed", is_seabed=True
     )
-    sonar = Sonar(
-        frequency_hz=real.frequency_hz,
-        max_range=real.max_range,
-        range_bin=real.range_bin,
-        beam=BeamPattern.gaussian(beam),
-        tilt=math.radians(tilt),
-    )
+    sonar = p.sonar(real.max_range, real.range_bin)
+    if beam is not None:
+        sonar = replace(sonar, beam=BeamPattern.gaussian(beam), tilt=math.radians(tilt))
     positions = np.stack(
         [np.zeros(n_pings), np.arange(n_pings) * real.ping_spacing, altitudes], axis=1
     )
     traj = Trajectory(positions, np.zeros(n_pings), np.zeros(n_pings))
-    raw = render_raster(build_scene([seabed]), sonar, traj)  # level fans: pitch is not modelled
-    fx = Effects(
-        along_beam_deg=args.along_beam_deg,
-        speckle="exponential",
-        range_resolution_m=args.range_resolution,
-        spreading=True,
-        absorption=True,
-        tvg="log",
-        tvg_log_coefficient=30.0,
-    )
-    quiet = apply_effects(raw, fx, seed=args.seed, trajectory=traj)
-    noise_db = noise_to_match(real, quiet, fx, water_ratio)
-    fx = replace(fx, noise_db=noise_db, bits=16)
+    scene = build_scene([seabed, wreck_block(real, altitudes)])
+    raw = render_raster(scene, sonar, traj)  # level fans: pitch is not modelled
+    fx = replace(p.effects(), ping_spacing_m=real.ping_spacing)
+    for name, value in (
+        ("along_beam_deg", args.along_beam_deg),
+        ("range_resolution_m", args.range_resolution),
+        ("noise_db", args.noise_db),
+    ):
+        if value is not None:
+            fx = replace(fx, **{name: value})
     return raw, apply_effects(raw, fx, seed=args.seed, trajectory=traj)
 
 
@@ -300,21 +320,77 @@ def statistics(image: np.ndarray, mask: np.ndarray):
     }
 
 
+def corr_length(norm: np.ndarray, mask: np.ndarray, axis: int, step: float) -> float:
+    """Speckle correlation length, metres: the std of the Gaussian cell whose lag-1 intensity
+    correlation is the image's, ``σ = 1 / (2 √(−ln ρ(1)))`` pixels times the pixel size."""
+    rho = min(max(lag1(norm, mask, axis), 1e-6), 0.999)
+    return step / (2.0 * math.sqrt(-math.log(rho)))
+
+
+def shadow_contrast(image: np.ndarray) -> float:
+    """Seabed beside the wreck over its shadow, dB: the median of the 9 × 9 local mean over
+    :data:`BESIDE_BINS` over the 5th percentile of it in the shadow window (same rows)."""
+    local = ndimage.uniform_filter(image.astype(np.float64), 9)
+    rows = slice(*SHADOW_ROWS)
+    shadow = np.percentile(local[rows, slice(*SHADOW_BINS)], 5)
+    beside = np.median(local[rows, slice(*BESIDE_BINS)])
+    return float(10 * np.log10(beside / max(shadow, 1e-30)))
+
+
+TARGETS = {"profile": 1.0, "contrast": 0.05, "ks": 0.05, "length": 0.20, "shadow": 3.0}
+
+
+def band_rows(real: RealPass, sim, firsts, profiles, window: slice, n_bands: int):
+    """Per side and range band: every statistic, real and simulated, with pass/fail."""
+    out = []
+    edges = np.linspace(window.start, window.stop, n_bands + 1).astype(int)
+    rng = np.random.default_rng(0)
+    for side in ("port", "starboard"):
+        mask = seabed_mask(firsts[side], real.sides[side].shape, real.hits, side)
+        real_img = real.sides[side]
+        sim_img = sim.sides[side].astype(np.float64)
+        norms = {
+            "real": real_img / np.maximum(local_mean(real_img), 1e-30),
+            "sim": sim_img / np.maximum(local_mean(sim_img), 1e-30),
+        }
+        for lo, hi in zip(edges[:-1], edges[1:], strict=True):
+            band = np.zeros_like(mask)
+            band[:, lo:hi] = True
+            m = mask & band
+            diff = profiles[side, "real"][lo:hi] - profiles[side, "sim"][lo:hi]
+            row = {
+                "side": side,
+                "band_m": (lo * real.range_bin, hi * real.range_bin),
+                "profile": float(np.sqrt(np.mean(diff**2))),
+            }
+            for key, img in (("real", real_img), ("sim", sim_img)):
+                c = patch_contrasts(img, m)
+                row[f"contrast_{key}"] = float(np.median(c)) if len(c) else math.nan
+                row[f"along_{key}"] = corr_length(norms[key], m, 0, real.ping_spacing)
+                row[f"across_{key}"] = corr_length(norms[key], m, 1, real.range_bin)
+            a = rng.choice(norms["real"][m], min(100_000, int(m.sum())))
+            b = rng.choice(norms["sim"][m], min(100_000, int(m.sum())))
+            row["ks"] = float(stats.ks_2samp(a, b).statistic)
+            out.append(row)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = parser(__doc__)
     ap.add_argument("--xtf", type=Path, default=DEFAULT_XTF)
-    ap.add_argument("--along-beam-deg", type=float, default=None, help="default: from data")
+    ap.add_argument("--sensor", default="marine-sonic-600", help="sensor preset simulated")
+    ap.add_argument("--along-beam-deg", type=float, default=None, help="default: the preset's")
+    ap.add_argument("--range-resolution", type=float, default=None, metavar="M")
+    ap.add_argument("--noise-db", type=float, default=None, help="default: the preset's")
     ap.add_argument(
-        "--range-resolution",
-        type=float,
-        default=None,
-        metavar="M",
-        help="speckle range cell (default: from the data)",
+        "--fit-beam", action="store_true", help="fit the vertical beam to the real mean profile"
     )
     ap.add_argument("--beam-deg", type=float, default=None)
     ap.add_argument("--tilt-deg", type=float, default=None)
+    ap.add_argument("--bands", type=int, default=3, help="range bands (default 3)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--png", type=Path, default=None, help="write real | simulated here")
+    ap.add_argument("--json", type=Path, default=None, help="write the numbers here")
     args = ap.parse_args(argv)
     if not args.xtf.is_file():
         print(f"no XTF file at {args.xtf}", file=sys.stderr)
@@ -325,7 +401,6 @@ def main(argv: list[str] | None = None) -> int:
     # Smooth: the steps of a bin between pings would make a steeply climbing or diving track.
     altitudes = ndimage.gaussian_filter1d(detected, 10.0, mode="nearest")
     n_bins = real.sides["port"].shape[1]
-    r = (np.arange(n_bins) + 0.5) * real.range_bin
     lo = int(math.ceil((altitudes[SKIP_PINGS:].max() + 1.5) / real.range_bin))
     window = slice(lo, n_bins - 8)
     print(
@@ -337,44 +412,18 @@ def main(argv: list[str] | None = None) -> int:
         f"altitude from the first bottom return: {altitudes[SKIP_PINGS:].min():.2f} to "
         f"{altitudes[SKIP_PINGS:].max():.2f} m (median {np.median(altitudes):.2f} m)"
     )
-    ratio = detected[SKIP_PINGS:] / altimeter(args.xtf)[SKIP_PINGS:]
-    print(
-        f"first return / (altimeter field / cos pitch): median {np.median(ratio):.3f}, "
-        f"5-95% {np.percentile(ratio, 5):.3f}-{np.percentile(ratio, 95):.3f}"
-    )
-    if args.beam_deg is None or args.tilt_deg is None:
-        err, beam, tilt = fit_beam(real, altitudes, window, footprint=True)
-        print(
-            f"fitted Gaussian vertical beam: {beam:.0f} deg wide, tilt {tilt:.1f} deg "
-            f"(thin-fan fit, RMS {err:.2f} dB)"
-        )
-    else:
+    beam = tilt = None
+    if args.beam_deg is not None and args.tilt_deg is not None:
         beam, tilt = args.beam_deg, args.tilt_deg
-    if args.along_beam_deg is None or args.range_resolution is None:
-        beam_deg, cell = speckle_cells(real, firsts["port"])
-        args.along_beam_deg = args.along_beam_deg or beam_deg
-        args.range_resolution = args.range_resolution or cell
-        print(
-            f"speckle cells from the real port side's lag-1 correlations: horizontal beam "
-            f"{beam_deg:.2f} deg, range resolution {100 * cell:.1f} cm"
-        )
+    elif args.fit_beam:
+        err, beam, tilt = fit_beam(real, altitudes, window, footprint=True)
+        print(f"fitted Gaussian vertical beam: {beam:.0f} deg, tilt {tilt:.1f} deg ({err:.2f} dB)")
     raw, sim = simulate(real, altitudes, args, beam, tilt)
     fx = sim.metadata["effects"]
     print(
-        f"simulation effects: {', '.join(fx['stages'])}; alpha {fx['alpha_db_m']:.3f} dB/m, "
-        f"receiver noise {fx['settings']['noise_db']:.1f} dB (matches the real water column, "
-        f"{10 * np.log10(water_column_ratio(real)):.1f} dB re the seabed)"
-    )
-    empty = sum(int((raw.sides[s].sum(axis=1) == 0).sum()) for s in raw.sides)
-    if empty:
-        print(f"warning: the raw render has {empty} empty ping rows")
-    print()
-    print(
-        f"mean intensity against slant range, dB re each image's mean over "
-        f"{r[window.start]:.1f}-{r[window.stop - 1]:.1f} m"
-    )
-    print(
-        f"{'range m':>8s} {'port real':>10s} {'port sim':>9s} {'stbd real':>10s} {'stbd sim':>9s}"
+        f"simulated: preset {args.sensor}, vertical beam "
+        f"{'preset' if beam is None else f'{beam:g} deg, tilt {tilt:g} deg'}; effects "
+        f"{', '.join(fx['stages'])}; noise {fx['settings'].get('noise_db')} dB"
     )
     profiles = {}
     for side in ("port", "starboard"):
@@ -383,44 +432,51 @@ def main(argv: list[str] | None = None) -> int:
             if side == "starboard":
                 keep = np.ones(len(a), bool)
                 for ping, _ in real.hits:
-                    lo, hi = ping + WRECK_ROWS[0] - SKIP_PINGS, ping + WRECK_ROWS[1] - SKIP_PINGS
-                    keep[max(0, lo) : hi] = False
+                    lo_, hi_ = ping + WRECK_ROWS[0] - SKIP_PINGS, ping + WRECK_ROWS[1] - SKIP_PINGS
+                    keep[max(0, lo_) : hi_] = False
                 a = a[keep]
             profiles[side, name] = 10 * np.log10(np.maximum(normalised_profile(a, window), 1e-12))
-    step = int(round(2.0 / real.range_bin))
-    for k in range(int(round(1.0 / real.range_bin)), n_bins, step):
-        row = [profiles[s, n][k] for s in ("port", "starboard") for n in ("real", "sim")]
-        print(f"{r[k]:8.1f} " + " ".join(f"{v:9.1f}" for v in row))
-    for side in ("port", "starboard"):
-        diff = profiles[side, "real"][window] - profiles[side, "sim"][window]
-        print(f"{side}: RMS difference over the window {np.sqrt(np.mean(diff**2)):.2f} dB")
+    rows = band_rows(real, sim, firsts, profiles, window, args.bands)
+    t = TARGETS
     print()
-    print(f"{'statistic':32s} {'side':9s} {'real':>8s} {'sim':>8s} {'sim raw':>8s}")
-    for side in ("port", "starboard"):
-        mask = seabed_mask(firsts[side], real.sides[side].shape, real.hits, side)
-        st = {
-            "real": statistics(real.sides[side], mask),
-            "sim": statistics(sim.sides[side].astype(np.float64), mask),
-            "raw": statistics(raw.sides[side].astype(np.float64), mask),
-        }
-        rows = [
-            ("speckle contrast, median", lambda s: np.median(s["contrast"])),
-            ("speckle contrast, 25th pct", lambda s: np.percentile(s["contrast"], 25)),
-            ("speckle contrast, 75th pct", lambda s: np.percentile(s["contrast"], 75)),
-            ("homogeneous patches", lambda s: len(s["contrast"])),
-            ("lag-1 correlation along track", lambda s: s["lag_along"]),
-            ("lag-1 correlation along range", lambda s: s["lag_range"]),
-        ]
-        for label, get in rows:
-            vals = [get(st[k]) for k in ("real", "sim", "raw")]
-            print(f"{label:32s} {side:9s} " + " ".join(f"{v:8.3f}" for v in vals))
-        rng = np.random.default_rng(0)
-        a = rng.choice(st["real"]["norm"], 200_000)
-        for key, label in (("sim", "sim"), ("raw", "sim raw")):
-            b = rng.choice(st[key]["norm"], 200_000)
-            ks = stats.ks_2samp(a, b).statistic
-            distance = bhattacharyya(a, b)
-            print(f"{'KS / Bhattacharyya vs ' + label:32s} {side:9s} {ks:8.3f} {distance:8.3f}")
+    print(
+        f"{'side':9s} {'band m':>11s} {'profile dB':>10s} {'contrast r/s':>13s} "
+        f"{'KS':>6s} {'along cm r/s':>13s} {'across cm r/s':>14s}"
+    )
+    for row in rows:
+        print(
+            f"{row['side']:9s} {row['band_m'][0]:5.1f}-{row['band_m'][1]:4.1f} "
+            f"{row['profile']:10.2f} {row['contrast_real']:6.3f}/{row['contrast_sim']:.3f} "
+            f"{row['ks']:6.3f} {100 * row['along_real']:6.2f}/{100 * row['along_sim']:<6.2f} "
+            f"{100 * row['across_real']:6.2f}/{100 * row['across_sim']:.2f}"
+        )
+    shadow = {"real": shadow_contrast(real.sides["starboard"])}
+    shadow["sim"] = shadow_contrast(sim.sides["starboard"])
+    print(
+        f"wreck shadow contrast (starboard): real {shadow['real']:.1f} dB, "
+        f"sim {shadow['sim']:.1f} dB"
+    )
+    checks = {
+        "mean profile <= 1 dB RMS": [r["profile"] <= t["profile"] for r in rows],
+        "speckle contrast within 0.05": [
+            abs(r["contrast_real"] - r["contrast_sim"]) <= t["contrast"] for r in rows
+        ],
+        "KS <= 0.05": [r["ks"] <= t["ks"] for r in rows],
+        "along-track length within 20 %": [
+            abs(r["along_sim"] / r["along_real"] - 1) <= t["length"] for r in rows
+        ],
+        "across-track length within 20 %": [
+            abs(r["across_sim"] / r["across_real"] - 1) <= t["length"] for r in rows
+        ],
+        "shadow contrast within 3 dB": [abs(shadow["real"] - shadow["sim"]) <= t["shadow"]],
+    }
+    print()
+    for name, ok in checks.items():
+        print(f"{name:34s} {sum(ok)} of {len(ok)} reached")
+    if args.json:
+        args.json.write_text(
+            __import__("json").dumps({"bands": rows, "shadow_db": shadow}, indent=1)
+        )
     if args.png:
         write_png(args.png, real, sim)
     return 0

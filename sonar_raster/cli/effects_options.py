@@ -1,4 +1,11 @@
-"""``sonar-raster render`` options for the sensor effects, merged over a scene's [effects]."""
+"""``sonar-raster render`` options for the sensor and its effects, merged over a scene's [effects].
+
+Which effects a render gets, from the lowest layer up: the sensor's (``--sensor NAME``, else the
+scene's ``[sonar] preset``, else the default sensor :data:`~sonar_raster.effects.presets.
+DEFAULT_SENSOR`), replaced by the scene's ``[effects]`` table when it has one and names no
+sensor; then the effect options given on the command line. ``--ideal`` starts from no effects at
+all (the raw Lambertian image, as the renderer gives it), with the options on top.
+"""
 
 from __future__ import annotations
 
@@ -14,6 +21,7 @@ _FIELDS = {
     "sas_resolution_m": "sas_resolution",
     "nadir_gap_deg": "nadir_gap_deg",
     "water_column_db": "water_column_db",
+    "volume_db": "water_column_sv",
     "speckle": "speckle",
     "k_shape": "k_shape",
     "range_resolution_m": "range_resolution",
@@ -40,9 +48,21 @@ def _number(text: str) -> float:
 def add_effect_options(parser: argparse.ArgumentParser) -> None:
     """Add the effect options to the ``render`` parser (all default to the scene's values)."""
     group = parser.add_argument_group(
-        "sensor effects (override the scene's [effects]; see docs/effects.md)"
+        "sensor and effects (override the scene's [effects]; see docs/sensors.md, docs/effects.md)"
     )
     add = group.add_argument
+    add(
+        "--sensor",
+        metavar="NAME",
+        help="sensor preset: its sonar (frequency, beams, tilt, range, bins) and every effect it "
+        "has (see 'sonar-raster sensors'); default: the scene's [sonar] preset, else the "
+        f"effects of {_default_sensor()} on the scene's sonar",
+    )
+    add(
+        "--ideal",
+        action="store_true",
+        help="no sensor effects: the raw Lambertian image (options below still apply)",
+    )
     add("--along-beam-deg", type=_number, metavar="DEG", help="side-scan horizontal beam width")
     add("--array-length", type=_number, metavar="M", help="side-scan array length (beam λ/L)")
     add("--sas-resolution", type=_number, metavar="M", help="SAS along-track resolution")
@@ -63,19 +83,127 @@ def add_effect_options(parser: argparse.ArgumentParser) -> None:
     add("--gain-db", type=_number, metavar="DB", help="fixed gain")
     add("--saturation", type=_number, metavar="LEVEL", help="full-scale level; above it clips")
     add("--quantise-bits", type=int, choices=(8, 12, 16), help="quantise to the sonar's bits")
-    add("--no-effects", action="store_true", help="ignore the scene's [effects] table")
+    add("--water-column-sv", type=_number, metavar="DB", help="volume backscatter Sv, dB re 1/m")
+    add("--no-effects", action="store_true", help="the same as --ideal")
+    add_display_options(parser)
 
 
-def effects_from_args(args: argparse.Namespace, scene_effects: Any) -> Any:
-    """The Effects to apply: the scene's (unless --no-effects) with the options given on top.
+def _default_sensor() -> str:
+    from ..effects.presets import DEFAULT_SENSOR
 
-    The options become an ``[effects]`` table of the fields they set, read by
-    :meth:`~sonar_raster.effects.chain.Effects.from_table` over the scene's effects. Returns
-    None when nothing is enabled, so the caller skips the effects step entirely.
+    return DEFAULT_SENSOR
+
+
+def _ideal(args: argparse.Namespace) -> bool:
+    flags = getattr(args, "ideal", False) or getattr(args, "no_effects", False)
+    return bool(flags or getattr(args, "sensor", None) == "ideal")
+
+
+def apply_sensor_option(args: argparse.Namespace, setup: Any) -> Any:
+    """The scene setup with ``--sensor NAME``'s sonar (``--range``/``--range-bin`` kept).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed ``render`` options (``sensor``, ``max_range``, ``range_bin``).
+    setup : SceneSetup
+        The loaded scene; its sides are kept.
+
+    Returns
+    -------
+    SceneSetup
+        ``setup`` itself without ``--sensor``; else a copy whose sonar is the preset's.
+    """
+    name = getattr(args, "sensor", None)
+    if name is None or _ideal(args):
+        return setup
+    from dataclasses import replace
+
+    from ..effects.presets import preset
+
+    sonar = preset(name).sonar(args.max_range, args.range_bin, setup.sonar.sides)
+    return replace(setup, sonar=sonar, notes={**setup.notes, "sensor_sonar": name})
+
+
+def add_display_options(parser: argparse.ArgumentParser) -> None:
+    """Add the PNG display options (level, palette, ground range, square pixels).
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The ``render`` parser.
+    """
+    group = parser.add_argument_group("PNG display (see docs/effects.md, 'The display image')")
+    add = group.add_argument
+    add(
+        "--level",
+        choices=("peak", "median"),
+        default=None,
+        help="peak: white at the 99.5th percentile; median: the median at mid-grey (default "
+        "with effects; then --dynamic-range defaults to 45 dB)",
+    )
+    add("--palette", choices=("grey", "copper"), default="grey", help="PNG colours")
+    add(
+        "--ground-range",
+        action="store_true",
+        help="slant-range correction: columns in ground range over a flat seabed",
+    )
+    add("--square-pixels", action="store_true", help="resample pings so pixels are square")
+
+
+def display_from_args(args: argparse.Namespace, setup: Any) -> Any:
+    """The :class:`~sonar_raster.io.images.Display` the options ask for.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed ``render`` options.
+    setup : SceneSetup
+        The scene: its altitude and ping spacing place the ground range and square pixels.
+    """
+    from ..io.images import Display
+
+    return Display(
+        level=getattr(args, "level", None),
+        palette=getattr(args, "palette", "grey"),
+        ground_range=bool(getattr(args, "ground_range", False)),
+        square_pixels=bool(getattr(args, "square_pixels", False)),
+        altitude_m=float(setup.altitude) if setup.altitude > 0 else None,
+        ping_spacing_m=float(setup.trajectory.typical_spacing) or None,
+    )
+
+
+def effects_from_args(args: argparse.Namespace, scene_effects: Any, *, default: bool = True) -> Any:
+    """The Effects to apply: the sensor's or the scene's, with the options given on top.
+
+    The base is ``--sensor``'s effects, else the scene's (its ``[effects]`` table, or the
+    effects of its ``[sonar] preset``), else, when ``default`` is true, those of the default
+    sensor; ``--ideal`` (or ``--no-effects``) makes the base empty. The options become an
+    ``[effects]`` table of the fields they set, read by
+    :meth:`~sonar_raster.effects.chain.Effects.from_table` over the base. Returns None when
+    nothing is enabled, so the caller skips the effects step entirely.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed ``render`` options.
+    scene_effects : Effects or None
+        The scene's effects (``SceneSetup.effects``).
+    default : bool
+        Fall back on the default sensor's effects when neither names any (streamed surveys,
+        which have no effects yet, pass False).
     """
     from ..effects.chain import Effects
+    from ..effects.presets import DEFAULT_SENSOR, preset
 
-    base = Effects() if args.no_effects or scene_effects is None else scene_effects
+    if _ideal(args):
+        base = Effects()
+    elif getattr(args, "sensor", None) is not None:
+        base = preset(args.sensor).effects()
+    elif scene_effects is not None:
+        base = scene_effects
+    else:
+        base = preset(DEFAULT_SENSOR).effects() if default else Effects()
     given = {field: getattr(args, dest) for field, dest in _FIELDS.items()}
     changes: dict[str, Any] = {k: v for k, v in given.items() if v is not None}
     if any(k in changes for k in _ALONG_MODES):  # the command line picks the along-track mode

@@ -95,21 +95,36 @@ def _labels(
 
 
 def _effects(image: SonarImage, config: DatasetConfig, drawn: SampleScene) -> SonarImage:
-    """Apply the config's ``[effects]`` (keywords of :class:`~sonar_raster.effects.Effects`)."""
-    if not config.effects:
+    """Apply the config's effects (:func:`effects_of`); none enabled: the raw image."""
+    effects = effects_of(config)
+    if not effects.stages:
         return image
     from ..effects.chain import apply_effects
 
-    effects = effects_of(config)
     return apply_effects(image, effects, seed=drawn.effects_seed, trajectory=drawn.trajectory)
 
 
 def effects_of(config: DatasetConfig) -> Any:
-    """:class:`sonar_raster.effects.chain.Effects` from a config's ``[effects]`` table."""
+    """:class:`sonar_raster.effects.chain.Effects` of a config.
+
+    Without an ``[effects]`` table: every effect of the default sensor
+    (:data:`~sonar_raster.effects.presets.DEFAULT_SENSOR`). A table is the complete effect set
+    (keywords of :class:`~sonar_raster.effects.Effects`) unless it names a ``sensor``, whose
+    effects its other keys then replace; ``sensor = "ideal"`` starts from none (raw images).
+
+    Parameters
+    ----------
+    config : DatasetConfig
+        The dataset config.
+    """
     from ..effects.chain import Effects
 
+    if config.effects is None:
+        from ..effects.presets import DEFAULT_SENSOR, preset
+
+        return preset(DEFAULT_SENSOR).effects()
     where = f"{Path(config.source).name} [effects]"
-    return Effects.from_table(config.effects or {}, base=config.base, where=where)
+    return Effects.from_table(config.effects, base=config.base, where=where)
 
 
 def _tmpdir() -> Path:

@@ -10,8 +10,14 @@ costs nothing, and with every stage off the input arrays come back untouched:
    beam width, ``0.886 λ / L`` for an array of length L) or a constant δ (SAS). The kernel has
    unit peak: a point target keeps its level, a seabed returns the sum over its footprint.
 2. ``nadir_gap`` — no returns from within ``nadir_gap_deg`` of the vertical below the sonar.
-3. ``water_column`` — a volume-reverberation level (dB re 1 m², raw units) in the bins before
-   each ping's first bottom return, which are exactly zero in the raw image.
+3. ``water_column`` — volume reverberation in the bins before each ping's first bottom return,
+   which are exactly zero in the raw image: a constant level ``water_column_db`` (dB re 1 m²,
+   raw units) and/or a volume backscattering strength ``volume_db`` = Sv (dB re 1 m⁻¹), whose
+   raw value in a bin is the scattering cross-section of the water the bin holds,
+   ``Sv · δr · r · Ψ · w(r)``: δr the bin, ``Ψ = ∫ Φ dα`` the two-way vertical beam integrated
+   over depression angles (radians), ``w(r)`` the equivalent along-track width of the two-way
+   footprint (``√(2π) σ Δy``; the ping spacing Δy without an along-track beam). After
+   spreading it falls as ``r⁻³``, like the seabed it is compared with.
 4. ``speckle`` — multiplicative unit-mean speckle, exponential or K-distributed, correlated at
    the resolution cell (along track: the footprint above; across: ``range_resolution_m``).
 5. ``spreading`` — two-way spherical spreading, intensity × ``r⁻⁴`` at the bin centre r (m).
@@ -26,9 +32,15 @@ costs nothing, and with every stage off the input arrays come back untouched:
    spreading of a point target, 30 that of a seabed seen through a side-scan footprint that
    grows as r) or a user curve of (range m, gain dB) points, linearly interpolated.
 9. ``gain`` — a fixed gain in dB.
-10. ``saturate`` — values above the full-scale level clip to it.
-11. ``quantise`` — rounding to ``2**bits - 1`` steps of full scale (full scale: ``saturation``,
-    or the image's largest value when no saturation is given); values stay in image units.
+10. ``saturate`` — values above the full-scale level clip to it. Full scale: ``saturation``;
+    else ``headroom_db`` above the median positive value (a receiver gain that puts the seabed
+    that far below full scale, as a recorder's operator does); else the image's largest value.
+11. ``quantise`` — rounding to ``2**bits - 1`` steps of full scale, of the intensity or, with
+    ``quantise_amplitude``, of its square root (the envelope a recorder digitises, so 16 bits
+    span 96 dB of amplitude); values stay in image units. A
+    positive value never rounds to code 0: it keeps at least one step (a receiver's noise floor
+    sits above its converter's last bit), so shadows and the water column hold the noise floor,
+    never exact zeros.
 """
 
 from __future__ import annotations
@@ -75,7 +87,14 @@ _POSITIVE_OR_NONE = (
     "range_resolution_m",
 )
 #: Fields that are None or a finite number (their ranges are checked apart).
-_NUMBER_OR_NONE = ("nadir_gap_deg", "water_column_db", "noise_db", "absorption_db_m")
+_NUMBER_OR_NONE = (
+    "headroom_db",
+    "nadir_gap_deg",
+    "water_column_db",
+    "volume_db",
+    "noise_db",
+    "absorption_db_m",
+)
 #: Fields that are always a finite number (k_shape > 0).
 _NUMBERS = (
     "k_shape",
@@ -112,6 +131,9 @@ class Effects:
         Half-angle of the blind cone below the sonar, degrees from the vertical, in (0, 90).
     water_column_db : float, optional
         Water-column return level before the first bottom return, dB re 1 m² (raw units).
+    volume_db : float, optional
+        Volume backscattering strength Sv of the water before the first bottom return,
+        dB re 1 m⁻¹ (about -90 to -60 at high frequency in coastal water).
     speckle : {"off", "exponential", "k"}
         Speckle statistics.
     k_shape : float
@@ -140,6 +162,15 @@ class Effects:
         Full-scale level (image units after gain); larger values clip.
     bits : {8, 12, 16}, optional
         Quantise to this many bits of full scale.
+    headroom_db : float, optional
+        Full scale this many dB above the median positive intensity (when no ``saturation``
+        is given); larger values clip.
+    quantise_amplitude : bool
+        Quantise the amplitude √I rather than the intensity.
+    sensor : str, optional
+        Name of the sensor preset these effects come from (a label, kept in the metadata). In
+        a table (:meth:`from_table`), ``sensor = NAME`` starts from that preset's effects and
+        ``sensor = "ideal"`` from none.
     """
 
     along_beam_deg: float | None = None
@@ -148,6 +179,7 @@ class Effects:
     ping_spacing_m: float | None = None
     nadir_gap_deg: float | None = None
     water_column_db: float | None = None
+    volume_db: float | None = None
     speckle: str = "off"
     k_shape: float = 1.0
     range_resolution_m: float | None = None
@@ -165,6 +197,9 @@ class Effects:
     gain_db: float = 0.0
     saturation: float | None = None
     bits: int | None = None
+    headroom_db: float | None = None
+    quantise_amplitude: bool = False
+    sensor: str | None = None
 
     def __post_init__(self) -> None:
         self._check_numbers()
@@ -188,6 +223,8 @@ class Effects:
             raise SonarRasterError(f"effects: bits must be 8, 12 or 16, got {self.bits!r}")
         if self.absorption or self.tvg == "log":
             self._check_water()
+        if self.sensor is not None and not isinstance(self.sensor, str):
+            raise SonarRasterError(f"effects: sensor must be a preset name, got {self.sensor!r}")
 
     def _check_numbers(self) -> None:
         """Every numeric field is an int or float (not text), finite, and in its range."""
@@ -218,7 +255,8 @@ class Effects:
         table : mapping
             Field names of :class:`Effects` to values, as TOML gives them: numbers, strings,
             true/false. ``tvg_curve`` is a list of ``[range_m, gain_db]`` pairs or the name
-            of a CSV file of them (:func:`load_tvg_curve`).
+            of a CSV file of them (:func:`load_tvg_curve`). ``sensor`` names a preset whose
+            effects the other keys replace (``"ideal"``: no effects), instead of ``defaults``.
         base : str or Path, optional
             Folder a ``tvg_curve`` file name is relative to (default: the working folder).
         where : str
@@ -240,7 +278,7 @@ class Effects:
         if unknown:
             raise SonarRasterError(f"{where}: unknown key(s) {', '.join(unknown)}")
         changes = dict(table)
-        for key in ("spreading", "absorption"):
+        for key in ("spreading", "absorption", "quantise_amplitude"):
             if key in changes and not isinstance(changes[key], bool):
                 raise SonarRasterError(
                     f"{where}: '{key}' must be true or false, got {changes[key]!r}"
@@ -250,6 +288,8 @@ class Effects:
             raise SonarRasterError(f"{where}: 'bits' must be 8, 12 or 16, got {bits!r}")
         if "tvg_curve" in changes:
             changes["tvg_curve"] = _table_curve(changes["tvg_curve"], base, where)
+        if "sensor" in changes:
+            defaults = _sensor_effects(changes.pop("sensor"), where)
         return replace(defaults, **changes) if defaults is not None else cls(**changes)
 
     def _check_curve(self) -> None:
@@ -285,14 +325,14 @@ class Effects:
                 self.along_beam_deg or self.array_length_m or self.sas_resolution_m
             ),
             "nadir_gap": self.nadir_gap_deg is not None,
-            "water_column": self.water_column_db is not None,
+            "water_column": self.water_column_db is not None or self.volume_db is not None,
             "speckle": self.speckle != "off",
             "spreading": self.spreading,
             "absorption": self.absorption,
             "noise": self.noise_db is not None,
             "tvg": self.tvg != "off",
             "gain": self.gain_db != 0.0,
-            "saturate": self.saturation is not None,
+            "saturate": self.saturation is not None or self.headroom_db is not None,
             "quantise": self.bits is not None,
         }
         return tuple(name for name in STAGES if on[name])
@@ -317,6 +357,23 @@ class Effects:
             for f in fields(self)
             if getattr(self, f.name) != getattr(base, f.name)
         }
+
+
+IDEAL = "ideal"
+
+
+def _sensor_effects(name: Any, where: str) -> Effects:
+    """The effects a table's ``sensor = NAME`` starts from (``"ideal"``: none)."""
+    if name == IDEAL:
+        return Effects()
+    if not isinstance(name, str):
+        raise SonarRasterError(f"{where}: 'sensor' must be a preset name, got {name!r}")
+    from .presets import preset
+
+    try:
+        return preset(name).effects()
+    except SonarRasterError as exc:
+        raise SonarRasterError(f"{where}: {exc}") from None
 
 
 def load_tvg_curve(path: str) -> tuple[tuple[float, float], ...]:
@@ -371,6 +428,8 @@ class _Context:
     rng: np.random.Generator
     alpha: float
     full_scale: float
+    ping_spacing: float = 0.0  # metres (0: unknown; the volume level then needs the beam)
+    beam_integral: float = 0.0  # Ψ = ∫ Φ dα over depression angles, radians
 
 
 Stage = Callable[[np.ndarray, Effects, _Context], np.ndarray]
@@ -393,9 +452,23 @@ def _nadir_gap(data: np.ndarray, fx: Effects, ctx: _Context) -> np.ndarray:
 
 
 def _water_column(data: np.ndarray, fx: Effects, ctx: _Context) -> np.ndarray:
-    assert fx.water_column_db is not None
+    level = np.zeros(data.shape[1])
+    if fx.water_column_db is not None:
+        level += 10.0 ** (fx.water_column_db / 10.0)
+    if fx.volume_db is not None:
+        level += 10.0 ** (fx.volume_db / 10.0) * _volume_area(ctx)
     before = np.arange(data.shape[1]) < ctx.first[:, None]
-    return data + np.where(before, 10.0 ** (fx.water_column_db / 10.0), 0.0)
+    return data + np.where(before, level, 0.0)
+
+
+def _volume_area(ctx: _Context) -> np.ndarray:
+    """``δr · r · Ψ · w(r)`` per bin, m³: the water volume a bin holds, beam-weighted (m³)."""
+    width = np.where(
+        ctx.sigma_along > 0,
+        math.sqrt(2.0 * math.pi) * ctx.sigma_along * ctx.ping_spacing,
+        ctx.ping_spacing,
+    )
+    return ctx.range_bin * ctx.ranges * ctx.beam_integral * width
 
 
 def _speckle(data: np.ndarray, fx: Effects, ctx: _Context) -> np.ndarray:
@@ -444,8 +517,10 @@ def _saturate(data: np.ndarray, fx: Effects, ctx: _Context) -> np.ndarray:
 def _quantise(data: np.ndarray, fx: Effects, ctx: _Context) -> np.ndarray:
     assert fx.bits is not None
     levels = 2**fx.bits - 1
-    step = ctx.full_scale / levels
-    return np.round(np.clip(data, 0.0, ctx.full_scale) / step) * step
+    power = 0.5 if fx.quantise_amplitude else 1.0
+    step = ctx.full_scale**power / levels
+    codes = np.round(np.clip(data, 0.0, ctx.full_scale) ** power / step)
+    return (np.where(data > 0, np.maximum(codes, 1.0), codes) * step) ** (1.0 / power)
 
 
 _FUNCTIONS: dict[str, Stage] = {
@@ -559,6 +634,7 @@ def apply_effects(
     children = entropy.spawn(len(SIDES))
     work = {name: np.asarray(a, dtype=np.float64) for name, a in image.sides.items()}
     need_first = "nadir_gap" in stages or "water_column" in stages
+    volume = _volume_terms(fx, image, spacing, ping_spacing, trajectory)
     ctx = {
         name: _Context(
             sonar.range_bin,
@@ -568,6 +644,7 @@ def apply_effects(
             np.random.default_rng(children[SIDES.index(name)] if name in SIDES else entropy),
             alpha,
             math.inf,
+            *volume,
         )
         for name, a in work.items()
     }
@@ -587,13 +664,34 @@ def apply_effects(
         "ping_spacing_m": spacing,
         "full_scale": full_scale,
     }
+    meta = {**image.metadata, "effects": record}
+    if fx.sensor is not None:
+        meta["sensor_preset"] = fx.sensor
     sides = {name: a.astype(np.float32) for name, a in work.items()}
-    return SonarImage(sides, image.sonar, {**image.metadata, "effects": record})
+    return SonarImage(sides, image.sonar, meta)
+
+
+def _volume_terms(
+    fx: Effects, image: SonarImage, spacing: float | None, ping_spacing: float | None, traj: Any
+) -> tuple[float, float]:
+    """(ping spacing m, Ψ = ∫ Φ dα rad) for the volume reverberation; zeros when it is off."""
+    if fx.volume_db is None:
+        return 0.0, 0.0
+    if spacing is None:
+        spacing = _ping_spacing(fx, image, ping_spacing, traj)
+    alpha = np.linspace(-math.pi / 2.0, math.pi / 2.0, 4097)
+    gain = image.sonar.gain(alpha)
+    psi = float(np.sum(0.5 * (gain[1:] + gain[:-1]) * np.diff(alpha)))
+    return spacing, psi
 
 
 def _full_scale(fx: Effects, work: dict[str, np.ndarray]) -> float:
     if fx.saturation is not None:
         return float(fx.saturation)
+    if fx.headroom_db is not None:
+        values = np.concatenate([a[a > 0] for a in work.values()])
+        if values.size:
+            return float(np.median(values)) * 10.0 ** (fx.headroom_db / 10.0)
     top = max(float(np.max(a)) for a in work.values())
     return top if top > 0 else 1.0
 

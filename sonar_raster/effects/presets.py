@@ -84,6 +84,18 @@ class SensorPreset:
         Physical receive array length, metres, where published.
     sound_speed_m_s : float
         Speed of sound the ranges refer to, m/s.
+    far_snr_db : float
+        Signal-to-noise ratio of a sandy seabed at the default range seen from an altitude of a
+        tenth of it, dB: sets the receiver noise level :attr:`noise_db` (not published for any
+        of these sensors; 10 dB is where operators set the range, the Marine Sonic's is fitted
+        to the real file's far range).
+    headroom_db : float
+        Receiver gain setting: full scale this many dB (intensity) above the median sample, so
+        the seabed sits there and bright targets clip. The real file's median sample is 8160 of
+        32767 on the seabed: 12 dB (taken for every preset; not a published figure).
+    volume_db : float
+        Volume backscattering strength Sv of the water column, dB re 1 m⁻¹ (an environment
+        figure, not the sensor's: -75 dB, mid coastal water at a few hundred kHz).
     assumed : tuple of str
         Names of the fields above whose value is not published in ``sources`` (chosen).
     sources : tuple of str
@@ -111,6 +123,9 @@ class SensorPreset:
     sas_resolution_m: float | None = None
     array_length_m: float | None = None
     sound_speed_m_s: float = 1500.0
+    far_snr_db: float = 10.0
+    headroom_db: float = 12.0
+    volume_db: float = -75.0
     assumed: tuple[str, ...]
     sources: tuple[str, ...]
     notes: str
@@ -145,6 +160,47 @@ class SensorPreset:
     def wavelength_m(self) -> float:
         """Wavelength at the centre frequency, metres."""
         return self.sound_speed_m_s / self.frequency_hz
+
+    @property
+    def footprint_width_m(self) -> float:
+        """Equivalent along-track width of the two-way footprint at the default range, metres.
+
+        ``√(2π) σ`` of the Gaussian intensity kernel of full width ``β r / √2`` (side-scan) or
+        δ (SAS), as the along-track stage of the effects blurs with it.
+        """
+        if self.kind == "sas":
+            assert self.sas_resolution_m is not None
+            fwhm = self.sas_resolution_m
+        else:
+            assert self.horizontal_beamwidth_deg is not None
+            fwhm = math.radians(self.horizontal_beamwidth_deg) * self.max_ranges_m[0] / math.sqrt(2)
+        return math.sqrt(2.0 * math.pi) * fwhm / (2.0 * math.sqrt(2.0 * math.log(2.0)))
+
+    def far_echo_db(self) -> float:
+        """Echo of a sandy seabed at the default range, altitude a tenth of it, dB re source.
+
+        ``10 log10(R sin g · w · δr / cos g) − 40 log10 r − 2 α r``: the renderer's Lambert law
+        ``R cos θ`` for the sand of :mod:`~sonar_raster.scenes.sediments` at grazing g, over the
+        footprint width w (:attr:`footprint_width_m`) and one range bin δr, spread and absorbed
+        (Francois-Garrison at 10 °C, 35 PSU) — the level the effects chain gives that pixel
+        before noise and TVG.
+        """
+        from ..scenes.sediments import material_reflectivity
+
+        r = self.max_ranges_m[0]
+        grazing = math.asin(0.1)
+        area = self.footprint_width_m * self.sonar().range_bin / math.cos(grazing)
+        sigma = material_reflectivity("sand") * math.sin(grazing) * area
+        alpha = Effects().alpha_db_m(self.frequency_hz)
+        return 10.0 * math.log10(sigma) - 40.0 * math.log10(r) - 2.0 * alpha * r
+
+    @property
+    def noise_db(self) -> float:
+        """Receiver noise level, dB re the source level (noise − directivity − source level).
+
+        :meth:`far_echo_db` minus :attr:`far_snr_db`.
+        """
+        return self.far_echo_db() - self.far_snr_db
 
     def sonar(
         self,
@@ -190,14 +246,19 @@ class SensorPreset:
     def effects(self) -> Effects:
         """Every effect this sensor has, as :class:`~sonar_raster.Effects`.
 
-        Along-track beam (horizontal beam width, or the SAS resolution), two-way spreading and
-        absorption, the TVG law, exponential speckle correlated over the range resolution cell,
-        and quantisation to the sensor's bit depth.
+        Along-track beam (horizontal beam width, or the SAS resolution), water-column volume
+        reverberation (:attr:`volume_db`), exponential speckle correlated over the range
+        resolution cell, two-way spreading and absorption, receiver noise (:attr:`noise_db`),
+        the TVG law, a full scale :attr:`headroom_db` above the median, and quantisation of the
+        amplitude to the sensor's bit depth. ``sensor`` is the preset name.
         """
         sas = self.kind == "sas"
         return Effects(
+            sensor=self.name,
             along_beam_deg=None if sas else self.horizontal_beamwidth_deg,
             sas_resolution_m=self.sas_resolution_m if sas else None,
+            volume_db=self.volume_db,
+            noise_db=round(self.noise_db, 2),
             speckle="exponential",
             range_resolution_m=self.range_resolution_m,
             spreading=True,
@@ -205,6 +266,8 @@ class SensorPreset:
             tvg=self.tvg,
             tvg_log_coefficient=self.tvg_log_coefficient,
             bits=self.bits,
+            headroom_db=self.headroom_db,
+            quantise_amplitude=True,
         )
 
     def table_row(self) -> dict[str, object]:
@@ -313,18 +376,21 @@ PRESETS: dict[str, SensorPreset] = {
             frequency_hz=600e3,
             pulse_length_s=2.0 * (_MS_RANGE / _MS_BINS) / 1500.0,
             pulse="cw",
-            horizontal_beamwidth_deg=0.5,
+            horizontal_beamwidth_deg=0.3,
             vertical_beamwidth_deg=50.0,
             tilt_deg=10.0,
             max_ranges_m=(_MS_RANGE,),
             range_bins=_MS_BINS,
             bits=16,
+            far_snr_db=11.0,
             assumed=(
                 "pulse_length_s",
                 "horizontal_beamwidth_deg",
                 "vertical_beamwidth_deg",
                 "tilt_deg",
                 "tvg",
+                "far_snr_db",
+                "headroom_db",
             ),
             sources=(REAL_FILE, _MARINE_SONIC_MANUAL),
             notes=(
@@ -336,11 +402,12 @@ PRESETS: dict[str, SensorPreset] = {
                 "The file leaves BandWidth, BeamWidth, HorizBeamAngle and TiltAngle at 0 (not "
                 "recorded) and no Marine Sonic datasheet figure was reachable here. Chosen: a CW "
                 "pulse whose c τ / 2 equals one recorded sample (39.0 µs, 2.93 cm) — the "
-                "recorder samples at about its resolution; 0.5° horizontal and 50° vertical "
-                "beams (0.5° = 0.886 λ/L for a 0.25 m array, AUV-sized), 10° tilt (JW "
-                "Fishers' 600 kHz transducers sit 10° down); 30 log r TVG. "
-                "The beam widths should be refitted to the file's along-track correlation "
-                "length (tools/compare_real.py)."
+                "recorder samples at about its resolution; 50° vertical beam, 10° tilt (JW "
+                "Fishers' 600 kHz transducers sit 10° down); 30 log r TVG. Fitted to the file "
+                "with tools/compare_real.py (docs/sensors.md): 0.3° horizontal (= 0.886 λ/L for "
+                "a 0.42 m array; 0.5° gave along-track speckle cells 1.2-1.8 times the file's), "
+                "far_snr_db 11 dB (the wreck shadow's 30 dB contrast), headroom 12 dB (median "
+                "sample 8160 of 32767)."
             ),
         ),
         SensorPreset(
@@ -435,6 +502,10 @@ PRESETS: dict[str, SensorPreset] = {
 }
 
 
+#: The sensor whose effects ``render`` and ``dataset`` apply when none is named (the real file's).
+DEFAULT_SENSOR = "marine-sonic-600"
+
+
 def list_presets() -> list[str]:
     """Names of the known sensor presets, sorted by centre frequency."""
     return sorted(PRESETS, key=lambda n: (PRESETS[n].frequency_hz, n))
@@ -454,3 +525,60 @@ def preset(name: str) -> SensorPreset:
         raise SonarRasterError(
             f"unknown sensor preset {name!r}; known: {', '.join(list_presets())}"
         ) from None
+
+
+def apply_sensor_preset(data: dict, where: str) -> dict:
+    """A scene description with its ``[sonar] preset = "NAME"`` expanded (a hook of the loader).
+
+    The preset's sonar fills the ``[sonar]`` keys the file leaves out (``frequency_hz``,
+    ``max_range``, ``range_bin``, ``tilt_deg``, a Gaussian ``beam``, ``sound_speed``; the range
+    bin follows a ``max_range`` the file gives), and ``[effects]`` gets ``sensor = "NAME"``
+    unless it names one, so the preset's effects are the base its keys replace.
+
+    Parameters
+    ----------
+    data : dict
+        The parsed TOML document; left unchanged.
+    where : str
+        The file's name, for messages.
+
+    Returns
+    -------
+    dict
+        ``data`` itself when ``[sonar]`` names no preset, else an expanded copy.
+
+    Raises
+    ------
+    SonarRasterError
+        For a preset name that is not text or not known.
+    """
+    table = data.get("sonar")
+    if not isinstance(table, dict) or "preset" not in table:
+        return data
+    table = dict(table)
+    name = table.pop("preset")
+    if not isinstance(name, str):
+        raise SonarRasterError(f"{where} [sonar]: 'preset' must be a preset name, got {name!r}")
+    try:
+        p = preset(name)
+    except SonarRasterError as exc:
+        raise SonarRasterError(f"{where} [sonar]: {exc}") from None
+    number = (int, float)
+    max_range = table.get("max_range")
+    range_bin = table.get("range_bin")
+    sonar = p.sonar(
+        max_range if isinstance(max_range, number) else None,
+        range_bin if isinstance(range_bin, number) else None,
+    )
+    filled = {
+        "frequency_hz": sonar.frequency_hz,
+        "max_range": sonar.max_range,
+        "range_bin": sonar.range_bin,
+        "tilt_deg": p.tilt_deg,
+        "beam": {"kind": "gaussian", "beamwidth_deg": p.vertical_beamwidth_deg / math.sqrt(2.0)},
+        "sound_speed": p.sound_speed_m_s,
+    }
+    effects = data.get("effects", {})
+    if not isinstance(effects, dict):
+        return {**data, "sonar": {**filled, **table}}  # the loader reports the bad [effects]
+    return {**data, "sonar": {**filled, **table}, "effects": {"sensor": name, **effects}}

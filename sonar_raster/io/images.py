@@ -12,6 +12,7 @@ import json
 import math
 import os
 from collections.abc import Callable
+from dataclasses import dataclass, replace
 from datetime import datetime, timezone
 from importlib import metadata as importlib_metadata
 from pathlib import Path
@@ -88,6 +89,209 @@ def display_mapping(
 
 #: Bounds of the automatic display range, dB.
 AUTO_RANGE_DB = (6.0, 60.0)
+#: Display range of a levelled image (one with sensor effects), dB: what side-scan viewers show.
+LEVELLED_RANGE_DB = 45.0
+PALETTES = ("grey", "copper")
+LEVELS = ("peak", "median")
+#: matplotlib's "copper": (R, G, B) = (min(1, 1.25 c), 0.7812 c, 0.4975 c) for a code c in [0, 1].
+COPPER = (1.25, 0.7812, 0.4975)
+COPPER_FORMULA = (
+    "copper palette: (R, G, B) = round(max_code * (min(1, 1.25 c), 0.7812 c, 0.4975 c)) of the "
+    "grey code c in [0, 1]; inverse: c = G / (0.7812 * max_code)"
+)
+
+
+@dataclass(frozen=True)
+class Display:
+    """How a PNG shows an image: level, palette and pixel geometry.
+
+    Attributes
+    ----------
+    level : {"peak", "median"}, optional
+        ``"peak"``: the reference level (full white) is the 99.5th percentile of the non-zero
+        intensities; ``"median"``: the median non-zero intensity sits at mid-grey, so the
+        reference is ``median · 10^(DR / 20)`` — the levelled look of a side-scan viewer for an
+        image whose TVG levelled it. None: ``"median"`` for an image with sensor effects (its
+        metadata lists effect stages), ``"peak"`` for a raw one.
+    palette : {"grey", "copper"}
+        Grey levels (one channel) or matplotlib's copper (RGB, :data:`COPPER_FORMULA`).
+    ground_range : bool
+        Resample each ping from slant range r to ground range ``x = √(r² − h²)`` over a flat
+        seabed at the altitude h (bins of the same size; the water column is dropped).
+    square_pixels : bool
+        Resample along track (linear between pings) so a row is one range bin long.
+    altitude_m : float, optional
+        h for ``ground_range``; default: the image metadata's ``altitude_m``.
+    ping_spacing_m : float, optional
+        Along-track distance between pings for ``square_pixels``; default: the metadata's
+        ``ping_spacing_m``, or the one its effects record.
+    """
+
+    level: str | None = None
+    palette: str = "grey"
+    ground_range: bool = False
+    square_pixels: bool = False
+    altitude_m: float | None = None
+    ping_spacing_m: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.level is not None and self.level not in LEVELS:
+            raise SonarRasterError(f"display level must be one of {', '.join(LEVELS)}")
+        if self.palette not in PALETTES:
+            raise SonarRasterError(
+                f"unknown palette {self.palette!r}; use one of {', '.join(PALETTES)}"
+            )
+        for name in ("altitude_m", "ping_spacing_m"):
+            value = getattr(self, name)
+            if value is not None and not (math.isfinite(value) and value > 0):
+                raise SonarRasterError(f"display {name} must be a positive number, got {value!r}")
+
+
+def _has_effects(image: SonarImage) -> bool:
+    record = image.metadata.get("effects")
+    return isinstance(record, dict) and bool(record.get("stages"))
+
+
+def _metadata_number(image: SonarImage, *keys: str) -> float | None:
+    node: Any = image.metadata
+    for key in keys:
+        node = node.get(key) if isinstance(node, dict) else None
+    ok = isinstance(node, (int, float)) and not isinstance(node, bool)
+    return float(node) if ok and math.isfinite(node) and node > 0 else None
+
+
+def ground_range_sides(
+    sides: dict[str, np.ndarray], range_bin: float, altitude: float
+) -> dict[str, np.ndarray]:
+    """Slant-range rows resampled to ground range over a flat seabed at ``altitude`` (metres).
+
+    Parameters
+    ----------
+    sides : dict of str to ndarray, (pings, bins)
+        Intensities per side, bin k centred at slant range ``(k + 0.5) · range_bin``.
+    range_bin : float
+        Slant-range bin, metres; the ground-range bins have the same size.
+    altitude : float
+        Height of the sonar above the flat seabed, metres.
+
+    Returns
+    -------
+    dict of str to ndarray, (pings, ground bins), float64
+        Column j holds the intensity at ground range ``(j + 0.5) · range_bin``, linearly
+        interpolated between slant-range bins; beyond the last bin, 0.
+    """
+    n_bins = next(iter(sides.values())).shape[1]
+    far = n_bins * range_bin
+    if altitude >= far:
+        raise SonarRasterError(
+            f"ground-range display: altitude {altitude:g} m is beyond the range {far:g} m"
+        )
+    n_ground = max(1, int(math.ceil(math.sqrt(far**2 - altitude**2) / range_bin)))
+    x = (np.arange(n_ground) + 0.5) * range_bin
+    position = np.sqrt(x**2 + altitude**2) / range_bin - 0.5  # fractional slant bin
+    k = np.arange(n_bins)
+    return {
+        name: np.stack(
+            [np.interp(position, k, row, right=0.0) for row in np.asarray(a, np.float64)]
+        )
+        for name, a in sides.items()
+    }
+
+
+def square_pixel_sides(
+    sides: dict[str, np.ndarray], ping_spacing: float, column_size: float
+) -> dict[str, np.ndarray]:
+    """Rows resampled along track so that each row is ``column_size`` long (square pixels).
+
+    Parameters
+    ----------
+    sides : dict of str to ndarray, (pings, columns)
+        Intensities per side.
+    ping_spacing : float
+        Along-track distance between pings, metres.
+    column_size : float
+        Across-track size of a column, metres.
+
+    Returns
+    -------
+    dict of str to ndarray, (rows, columns), float64
+        ``rows = round(pings · ping_spacing / column_size)`` (at least 1); row i is centred at
+        ``(i + 0.5) · column_size`` along track, linearly interpolated between pings.
+    """
+    pings = next(iter(sides.values())).shape[0]
+    rows = max(1, int(round(pings * ping_spacing / column_size)))
+    position = (np.arange(rows) + 0.5) * column_size / ping_spacing - 0.5
+    position = np.clip(position, 0.0, pings - 1.0)
+    lo = np.floor(position).astype(np.int64)
+    hi = np.minimum(lo + 1, pings - 1)
+    w = (position - lo)[:, None]
+    return {
+        name: (1.0 - w) * np.asarray(a, np.float64)[lo] + w * np.asarray(a, np.float64)[hi]
+        for name, a in sides.items()
+    }
+
+
+def display_sides(
+    image: SonarImage, sides: dict[str, np.ndarray], display: Display
+) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """The sides as the PNG shows them (ground range, square pixels) and that geometry.
+
+    Parameters
+    ----------
+    image : SonarImage
+        The image (its sonar and metadata give the bin size, altitude and ping spacing).
+    sides : dict of str to ndarray
+        Its checked sides (:func:`checked_sides`).
+    display : Display
+        The geometry asked for.
+
+    Returns
+    -------
+    sides : dict of str to ndarray
+        The resampled sides (the input when no resampling is asked for).
+    geometry : dict
+        ``columns`` ("slant range" or "ground range"), ``column_m`` (metres per column),
+        ``row_m`` (metres per row, or None when unknown), ``altitude_m`` (ground range only):
+        what a reader needs to map pixels back to pings and bins.
+    """
+    column = float(image.sonar.range_bin)
+    spacing = display.ping_spacing_m or _metadata_number(image, "ping_spacing_m")
+    spacing = spacing or _metadata_number(image, "effects", "ping_spacing_m")
+    geometry: dict[str, Any] = {"columns": "slant range", "column_m": column, "row_m": spacing}
+    if display.ground_range:
+        altitude = display.altitude_m or _metadata_number(image, "altitude_m")
+        if altitude is None:
+            raise SonarRasterError(
+                "the ground-range display needs the altitude: give it (Display.altitude_m) or "
+                "write an image whose metadata has altitude_m"
+            )
+        sides = ground_range_sides(sides, column, altitude)
+        geometry.update(columns="ground range", altitude_m=altitude)
+    if display.square_pixels:
+        if spacing is None:
+            raise SonarRasterError(
+                "square pixels need the ping spacing: give it (Display.ping_spacing_m) or "
+                "write an image whose metadata has ping_spacing_m"
+            )
+        sides = square_pixel_sides(sides, spacing, column)
+        geometry["row_m"] = column
+    return sides, geometry
+
+
+def palette_codes(codes: np.ndarray, palette: str) -> np.ndarray:
+    """Grey codes in [0, 1], (h, w), as (h, w, channels) in the palette: 1 (grey) or 3 (RGB).
+
+    Parameters
+    ----------
+    codes : ndarray, (h, w)
+        Display codes in [0, 1].
+    palette : {"grey", "copper"}
+        The palette (:data:`COPPER_FORMULA`).
+    """
+    if palette == "grey":
+        return codes[:, :, np.newaxis]
+    r, g, b = COPPER
+    return np.stack([np.minimum(1.0, r * codes), g * codes, b * codes], axis=-1)
 
 
 def auto_dynamic_range(intensity: np.ndarray, ref: float | None = None) -> float:
@@ -114,6 +318,7 @@ def write_image(
     bit_depth: int = 8,
     dynamic_range_db: float | None = None,
     sidecar: bool = True,
+    display: Display | None = None,
 ) -> list[Path]:
     """Write a sonar image as linear EXR or display PNG, plus a JSON sidecar.
 
@@ -136,6 +341,10 @@ def write_image(
         image (:func:`auto_dynamic_range`).
     sidecar : bool
         Also write the JSON sidecar.
+    display : Display, optional
+        Level, palette and pixel geometry of the PNG. Default: the ``"peak"`` level and the
+        image's own span for a raw image, the ``"median"`` level and 45 dB for one with sensor
+        effects; grey; slant range; one row per ping.
 
     Returns
     -------
@@ -144,7 +353,12 @@ def write_image(
     """
     return commit(
         image_jobs(
-            image, path, bit_depth=bit_depth, dynamic_range_db=dynamic_range_db, sidecar=sidecar
+            image,
+            path,
+            bit_depth=bit_depth,
+            dynamic_range_db=dynamic_range_db,
+            sidecar=sidecar,
+            display=display,
         )
     )
 
@@ -156,11 +370,19 @@ def image_jobs(
     bit_depth: int = 8,
     dynamic_range_db: float | None = None,
     sidecar: bool = True,
+    display: Display | None = None,
 ) -> list[tuple[Path, Callable[[Path], None]]]:
     """The (final path, writer) jobs of :func:`write_image`, for one :func:`.commit` of many.
 
     Checks the image and the options as :func:`write_image` does and prepares the pixels;
     nothing is written until the jobs are passed to :func:`~sonar_raster.io.commit.commit`.
+
+    Parameters
+    ----------
+    image, path, bit_depth, dynamic_range_db, sidecar
+        As :func:`write_image`.
+    display : Display, optional
+        Level, palette and geometry of the PNG (default :class:`Display`).
     """
     path = Path(path)
     suffix = path.suffix.lower()
@@ -173,26 +395,50 @@ def image_jobs(
         raise SonarRasterError(f"PNG bit depth must be 8 or 16, got {bit_depth!r}")
     sides = checked_sides(image)
     check_directory(path)
-    display = SonarImage(sides, image.sonar).display()
-    if dynamic_range_db is None:
-        dynamic_range_db = auto_dynamic_range(display)
-    codes, ref = display_mapping(display, dynamic_range_db)
-    mapping = {
-        "ref_level_m2": ref,
-        "dynamic_range_db": float(dynamic_range_db),
-        "formula": MAPPING_FORMULA,
-    }
+    codes, mapping = _display(image, sides, display or Display(), dynamic_range_db)
     jobs: list[tuple[Path, Callable[[Path], None]]] = []
     if suffix == ".exr":
         exr_attrs = exr_attributes(image)
         jobs.append((path, lambda tmp: _write_exr(tmp, sides, exr_attrs)))
     else:
         png_attrs = png_attributes(image, mapping, bit_depth)
-        jobs.append((path, lambda tmp: _write_png(tmp, codes, bit_depth, png_attrs)))
+        pixels = palette_codes(codes, mapping.get("palette", "grey"))
+        jobs.append((path, lambda tmp: _write_png(tmp, pixels, bit_depth, png_attrs)))
     if sidecar:
         doc = sidecar_document(image, mapping)
         jobs.append((path.with_suffix(".json"), lambda tmp: write_json(tmp, doc)))
     return jobs
+
+
+def _display(
+    image: SonarImage, sides: dict[str, np.ndarray], display: Display, dr: float | None
+) -> tuple[np.ndarray, dict[str, Any]]:
+    """Display codes in [0, 1] of the PNG and the mapping that made them (for the metadata).
+
+    A raw image with the default :class:`Display` gets exactly the mapping it always had (the
+    same keys too); other settings add ``level``, ``palette`` and ``geometry`` entries.
+    """
+    level = display.level or ("median" if _has_effects(image) else "peak")
+    shown, geometry = display_sides(image, sides, display)
+    both = SonarImage(shown, image.sonar).display()
+    if dr is None:
+        dr = LEVELLED_RANGE_DB if level == "median" else auto_dynamic_range(both)
+    ref = None
+    if level == "median":
+        positive = both[both > 0]
+        ref = float(np.median(positive)) * 10.0 ** (dr / 20.0) if positive.size else 1.0
+    codes, ref = display_mapping(both, dr, ref)
+    mapping: dict[str, Any] = {
+        "ref_level_m2": ref,
+        "dynamic_range_db": float(dr),
+        "formula": MAPPING_FORMULA,
+    }
+    plain = replace(display, altitude_m=None, ping_spacing_m=None) == Display()
+    if not plain or level != "peak":
+        mapping.update(level=level, palette=display.palette, geometry=geometry)
+        if display.palette == "copper":
+            mapping["palette_formula"] = COPPER_FORMULA
+    return codes, mapping
 
 
 def read_pixels(path: str | os.PathLike) -> tuple[np.ndarray, oiio.ImageSpec]:
@@ -287,11 +533,12 @@ def _write_exr(tmp: Path, sides: dict[str, np.ndarray], attrs: dict) -> None:
     write_oiio(tmp, pixels, spec)
 
 
-def _write_png(tmp: Path, codes: np.ndarray, bit_depth: int, attrs: dict) -> None:
-    quantised, fmt = quantised_codes(codes, bit_depth)
-    quantised = quantised[:, :, np.newaxis]
-    spec = oiio.ImageSpec(quantised.shape[1], quantised.shape[0], 1, fmt)
-    spec.channelnames = ("Y",)
+def _write_png(tmp: Path, pixels: np.ndarray, bit_depth: int, attrs: dict) -> None:
+    """Write (h, w, 1) grey or (h, w, 3) RGB codes in [0, 1] as an 8- or 16-bit PNG."""
+    quantised, fmt = quantised_codes(pixels, bit_depth)
+    channels = quantised.shape[2]
+    spec = oiio.ImageSpec(quantised.shape[1], quantised.shape[0], channels, fmt)
+    spec.channelnames = ("Y",) if channels == 1 else ("R", "G", "B")
     for name, value in attrs.items():
         spec.attribute(name, value)
     write_oiio(tmp, quantised, spec)
@@ -352,6 +599,7 @@ def png_attributes(image: SonarImage, mapping: dict, bit_depth: int) -> dict[str
             "sonar:display_dynamic_range_db": repr(mapping["dynamic_range_db"]),
             "sonar:display_max_code": str(max_code),
             "sonar:display_mapping": MAPPING_FORMULA,
+            **_display_attributes(mapping),
             "ImageDescription": (
                 "Side-scan sonar display image. "
                 f"Reference level ref = {mapping['ref_level_m2']!r} m^2, "
@@ -361,6 +609,21 @@ def png_attributes(image: SonarImage, mapping: dict, bit_depth: int) -> dict[str
         }
     )
     attrs.update(_metadata_attributes(image.metadata))
+    return attrs
+
+
+def _display_attributes(mapping: dict) -> dict[str, str]:
+    """PNG text chunks of the mapping's level, palette and geometry (none for the default)."""
+    if "level" not in mapping:
+        return {}
+    attrs = {
+        "sonar:display_level": str(mapping["level"]),
+        "sonar:display_palette": str(mapping["palette"]),
+    }
+    if "palette_formula" in mapping:
+        attrs["sonar:display_palette_formula"] = str(mapping["palette_formula"])
+    for key, value in mapping["geometry"].items():
+        attrs[f"sonar:display_{key}"] = repr(value) if isinstance(value, float) else str(value)
     return attrs
 
 

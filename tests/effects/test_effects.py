@@ -498,7 +498,7 @@ def test_cli_effects_options(tmp_path):
     from sonar_raster.io.images import read_exr
 
     plain, fx = tmp_path / "plain.exr", tmp_path / "fx.exr"
-    common = ["render", "flat_calibration", "--pings", "30", "-q"]
+    common = ["render", "flat_calibration", "--pings", "30", "-q", "--ideal"]  # raw base
     assert main([*common, "-o", str(plain)]) == 0
     opts = ["--spreading", "--absorption", "--tvg", "log", "--tvg-log", "40", "--seed", "1"]
     assert main([*common, "-o", str(fx), *opts]) == 0
@@ -522,13 +522,14 @@ def test_cli_options_merge_over_the_scene_effects():
     def parse(*extra):
         return _parser().parse_args(["render", "x.toml", "-o", "o.png", *extra])
 
-    assert effects_from_args(parse(), None) is None  # nothing on: the step is skipped
+    assert effects_from_args(parse("--ideal"), None) is None  # nothing on: the step is skipped
+    assert effects_from_args(parse(), None).sensor == "marine-sonic-600"  # the default sensor
     scene = Effects(along_beam_deg=1.0, speckle="exponential")
     fx = effects_from_args(parse("--sas-resolution", "0.2", "--k-shape", "3"), scene)
     assert fx.sas_resolution_m == 0.2 and fx.along_beam_deg is None  # the CLI picks the mode
     assert fx.speckle == "k" and fx.k_shape == 3.0
     assert effects_from_args(parse("--no-effects"), scene) is None
-    fx = effects_from_args(parse("--tvg-log", "20", "--quantise-bits", "12"), None)
+    fx = effects_from_args(parse("--ideal", "--tvg-log", "20", "--quantise-bits", "12"), None)
     assert fx.tvg == "log" and fx.tvg_log_coefficient == 20.0 and fx.bits == 12
 
 
