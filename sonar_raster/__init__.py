@@ -21,6 +21,7 @@ Heavy modules load on first use, so importing the package stays fast.
 
 from __future__ import annotations
 
+from importlib import metadata as _metadata
 from typing import TYPE_CHECKING
 
 from ._lazy import lazy_exports
@@ -29,6 +30,11 @@ from .image import SonarImage
 from .scene import MeshPart, Scene, build_scene
 from .sonar import BeamPattern, Sonar
 from .trajectory import Trajectory
+
+try:
+    __version__ = _metadata.version("sonar_raster")
+except _metadata.PackageNotFoundError:  # a source tree that was never installed
+    __version__ = "0+unknown"
 
 if TYPE_CHECKING:
     from .dataset import DatasetConfig, generate_dataset, load_dataset_config

@@ -6,3 +6,15 @@ class SonarRasterError(ValueError):
 
     The CLI prints ``str(error)`` on one line and exits with status 2.
     """
+
+
+class InputWarning(UserWarning):
+    """Input that was read with a repair, or settings that look wrong but can still run.
+
+    The CLI prints ``sonar-raster: warning: <message>`` and carries on (other warnings stop a
+    command as errors). Each message names what was found and what to do about it.
+    """
+
+
+class DeprecatedOptionWarning(InputWarning, FutureWarning):
+    """A command-line option or file key that still works under an old name."""

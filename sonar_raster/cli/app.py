@@ -10,6 +10,8 @@ left behind.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import logging
 import signal
 import sys
@@ -17,8 +19,8 @@ import threading
 import warnings
 from typing import Any
 
-from ..errors import SonarRasterError
-from . import dataset, doctor, invert, render, scenes, track
+from ..errors import InputWarning, SonarRasterError
+from . import dataset, doctor, invert, render, scenes, sensors, track
 
 EXIT_BAD_INPUT = 2
 
@@ -29,6 +31,7 @@ COMMANDS = {
     "dataset": dataset,
     "track": track,
     "scenes": scenes,
+    "sensors": sensors,  # issue 16
     "doctor": doctor,
 }
 
@@ -46,12 +49,25 @@ def _parser() -> argparse.ArgumentParser:
         prog="sonar-raster",
         description="Side-scan sonar images from 3D scenes, rendered with headless OpenGL.",
     )
+    parser.add_argument("--version", action="version", version=f"sonar-raster {_version()}")
     sub = parser.add_subparsers(
         dest="command", required=True, metavar="COMMAND", parser_class=_Parser
     )
     for command in COMMANDS.values():
         command.add_parser(sub)
+    for command_parser in sub.choices.values():
+        if not any("--quiet" in action.option_strings for action in command_parser._actions):
+            command_parser.add_argument(
+                "-q", "--quiet", action="store_true", help="print nothing but warnings and errors"
+            )
+            command_parser.set_defaults(_silence_stdout=True)
     return parser
+
+
+def _version() -> str:
+    from .. import __version__
+
+    return __version__
 
 
 #: Warnings of these kinds concern the code, not the user's input: they stay warnings.
@@ -82,6 +98,11 @@ def main(argv: list[str] | None = None) -> int:
             warnings.simplefilter("error")
             for category in _DEVELOPER_WARNINGS:
                 warnings.simplefilter("default", category)
+            warnings.simplefilter("always", InputWarning)
+            warnings.showwarning = _show_warning(warnings.showwarning)
+            if getattr(args, "_silence_stdout", False) and args.quiet:
+                with contextlib.redirect_stdout(io.StringIO()):
+                    return COMMANDS[args.command].run(args)
             return COMMANDS[args.command].run(args)
     except SonarRasterError as exc:
         print(f"sonar-raster: error: {exc}", file=sys.stderr)
@@ -100,6 +121,24 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
+
+
+def _show_warning(fallback: Any) -> Any:
+    """``warnings.showwarning`` that prints an :class:`InputWarning` as one line on stderr.
+
+    Input warnings (a repaired model file, settings that image little) are for the user:
+    ``sonar-raster: warning: <message>``, without the source location. Others go to
+    ``fallback``.
+    """
+
+    def show(message, category, filename, lineno, file=None, line=None):  # type: ignore[no-untyped-def]
+        if issubclass(category, InputWarning):
+            text = " ".join(str(message).split())
+            print(f"sonar-raster: warning: {text}", file=sys.stderr if file is None else file)
+            return
+        fallback(message, category, filename, lineno, file, line)
+
+    return show
 
 
 def _install_sigterm() -> Any:

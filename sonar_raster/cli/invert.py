@@ -34,7 +34,8 @@ def add_parser(sub: Any) -> None:
         "invert",
         help="recover reflectivity, beam profile and elevation from one image side",
         description="Invert IMAGE (.npy, .exr or .png; rows = pings, columns = slant-range "
-        "bins from range 0; the renderer's EXR as is) into DIR/elevation.exr, "
+        "bins from range 0; the renderer's EXR as is, its display PNG mapped back to "
+        "intensity, one --side of it) into DIR/elevation.exr, "
         "reflectivity.exr, beam.exr (rows = pings, columns = ground-range cells, NaN = no "
         "estimate), ground.exr (the image in ground range at the recovered elevation), "
         "even.exr (evenly illuminated, seed Eq. 22), beam_profile.json, seabed.glb/.ply "
@@ -49,7 +50,8 @@ def add_parser(sub: Any) -> None:
         "--range-bin",
         type=cli_positive(float),
         metavar="METRES",
-        help="slant-range bin size (read from a renderer EXR when omitted)",
+        help="slant-range bin size (default: from the renderer's EXR or PNG metadata, "
+        "sonar:range_bin_m)",
     )
     inv.add_argument(
         "--altitude",
@@ -57,7 +59,13 @@ def add_parser(sub: Any) -> None:
         metavar="METRES",
         help="sonar altitude (default: first bottom return of each ping)",
     )
-    inv.add_argument("--side", choices=("port", "starboard"), help="which side of an EXR")
+    inv.add_argument(
+        "--side",
+        choices=("port", "starboard"),
+        help="which side to invert: of an EXR (default starboard), of a renderer's two-sided "
+        "display PNG (required there: port is flipped back to near range first), of an XTF "
+        "file (default both)",
+    )
     inv.add_argument(
         "--max-iter",
         type=cli_positive(int),
@@ -126,7 +134,7 @@ def add_parser(sub: Any) -> None:
     inv.add_argument(
         "--pings", metavar="A:B", help="XTF input: ping range to invert (indices, stop excluded)"
     )
-    inv.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    inv.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -137,12 +145,9 @@ def run(args: argparse.Namespace) -> int:
     _check_output_dir(Path(args.output), ())
     _check_image_size(Path(args.image))
     from ..inversion.solver import BeamProfile, invert
-    from ..inversion.write import energy_summary, read_side, write_products
+    from ..inversion.write import energy_summary, write_products
 
-    image, side, attrs = read_side(Path(args.image), args.side)
-    range_bin = args.range_bin or attrs.get("sonar:range_bin_m")
-    if not range_bin:
-        raise SonarRasterError("--range-bin is required for this image")
+    image, side, range_bin = load_side(Path(args.image), args.side, args.range_bin)
     beam = BeamProfile.load(args.beam) if args.beam else None
     result = invert(
         image,
@@ -173,6 +178,92 @@ def run(args: argparse.Namespace) -> int:
         for path in written:
             print(f"wrote {path}")
     return 0
+
+
+def load_side(path: Path, side: str | None, range_bin: float | None) -> tuple[Any, str, float]:
+    """One side of an image to invert, its name and its range bin.
+
+    A display PNG the renderer wrote (it carries ``sonar:display_*`` text chunks) has its
+    display mapping undone (codes back to linear intensity, code 0 to 0) and its geometry read
+    from ``sonar:range_bin_m``; a two-sided one holds port (flipped, on the left) and
+    starboard side by side, so ``side`` is required and that half is taken, near range first.
+    Other PNGs are taken as one side of linear grey levels. ``.npy`` and ``.exr`` go through
+    :func:`sonar_raster.inversion.write.read_side`.
+
+    Parameters
+    ----------
+    path : Path
+        ``.png``, ``.exr`` or ``.npy`` image.
+    side : str, optional
+        "port" or "starboard"; default: starboard where there is one.
+    range_bin : float, optional
+        Slant-range bin, metres; default: the file's ``sonar:range_bin_m``.
+
+    Returns
+    -------
+    image : ndarray, shape (pings, bins), float64
+        Linear intensity, columns from range 0 outward.
+    side : str
+        The side taken.
+    range_bin : float
+        The range bin used, metres.
+    """
+    if path.suffix.lower() == ".png" and path.is_file():
+        image, side, attrs = _read_png_side(path, side)
+    else:
+        from ..inversion.write import read_side
+
+        image, side, attrs = read_side(path, side)
+    found = _header_float(attrs, "sonar:range_bin_m")
+    range_bin = range_bin or found
+    if not range_bin:
+        raise SonarRasterError(
+            f"{path.name} does not say its range bin (no sonar:range_bin_m); give --range-bin"
+        )
+    return image, side, float(range_bin)
+
+
+def _header_float(attrs: dict, name: str) -> float | None:
+    """A numeric header field (EXR numbers, PNG text), None when absent or not a number."""
+    import math
+
+    try:
+        value = float(attrs[name])
+    except (KeyError, TypeError, ValueError):
+        return None
+    return value if math.isfinite(value) and value > 0 else None
+
+
+def _read_png_side(path: Path, side: str | None) -> tuple[Any, str, dict]:
+    """One side of a PNG: a renderer's display image mapped back to intensity, or grey levels."""
+    import numpy as np
+
+    from ..io.images import read_pixels
+
+    pixels, spec = read_pixels(path)
+    attrs = {a.name: a.value for a in spec.extra_attribs}
+    codes = pixels[:, :, 0].astype(np.float64)
+    ref = _header_float(attrs, "sonar:display_ref_level_m2")
+    span = _header_float(attrs, "sonar:display_dynamic_range_db")
+    if ref is None or span is None:  # not ours: grey levels as linear intensity
+        return codes, side or "starboard", attrs
+    sides = [s for s in str(attrs.get("sonar:sides", "starboard")).split(",") if s]
+    if len(sides) == 2 and side is None:
+        raise SonarRasterError(
+            f"{path.name} is a two-sided display image (port on the left, starboard on the "
+            "right); pass --side port or --side starboard"
+        )
+    side = side or sides[0]
+    if side not in sides:
+        raise SonarRasterError(f"{path.name} has no {side} side (it has {', '.join(sides)})")
+    if len(sides) == 2:
+        half = codes.shape[1] // 2
+        codes = codes[:, :half][:, ::-1] if side == "port" else codes[:, half:]
+    elif side == "port":
+        codes = codes[:, ::-1]
+    # read_pixels gives codes / max_code in [0, 1]; code 0 is zero intensity (shadow, water).
+    intensity = ref * 10.0 ** (span / 10.0 * (codes - 1.0))
+    return np.where(codes > 0, intensity, 0.0), side, attrs
 
 
 #: Peak bytes per input pixel of an inversion (float64 copies, pyramid, ground-range grids).

@@ -3,14 +3,21 @@
 from __future__ import annotations
 
 import argparse
+import math
+import warnings
 from collections.abc import Callable
 from functools import partial
 from pathlib import Path
 from typing import Any
 
 from .._checks import cli_positive
-from ..errors import SonarRasterError
-from .effects_options import add_effect_options, effects_from_args
+from ..errors import DeprecatedOptionWarning, SonarRasterError
+from .effects_options import (
+    add_effect_options,
+    apply_sensor_option,
+    display_from_args,
+    effects_from_args,
+)
 
 _SIDE_CHOICES = {"port": ("port",), "starboard": ("starboard",), "both": ("port", "starboard")}
 _OUTPUT_SUFFIXES = (".png", ".exr", ".xtf")
@@ -69,11 +76,19 @@ def add_parser(sub: Any) -> None:
         "scatterers, chirp and matched filter (Eq. 10), with speckle; slow",
     )
     render.add_argument(
-        "--spacing",
+        "--scatterer-spacing",
         type=cli_positive(float),
         default=None,
         metavar="WAVELENGTHS",
-        help="coherent model: scatterer spacing (default 0.25; run time grows as 1/spacing^2)",
+        help="coherent model: distance between point scatterers in wavelengths (default 0.25; "
+        "run time grows as 1/spacing^2)",
+    )
+    render.add_argument(
+        "--spacing",
+        dest="old_spacing",
+        type=cli_positive(float),
+        default=None,
+        help=argparse.SUPPRESS,  # deprecated name of --scatterer-spacing
     )
     render.add_argument(
         "--seed",
@@ -124,22 +139,244 @@ def add_parser(sub: Any) -> None:
         help="render even when the job's memory estimate exceeds this machine's memory",
     )
     render.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
+    _add_sonar_options(render)
+    _add_placement_options(render)
     add_effect_options(render)
 
 
-def run(args: argparse.Namespace) -> int:
-    """Run ``sonar-raster render``."""
-    outputs = _check_outputs(args.output)
-    from ..scenes.description import Overrides, load_scene
+def _finite(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be finite, got {text}")
+    return value
 
+
+_finite.__name__ = "number"
+
+
+def _tilt(text: str) -> float:
+    value = _finite(text)
+    if not -90.0 <= value <= 90.0:
+        raise argparse.ArgumentTypeError(f"must be between -90 and 90 degrees, got {text}")
+    return value
+
+
+_tilt.__name__ = "tilt"
+
+
+def _position(text: str) -> tuple[float, ...]:
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) not in (2, 3) or not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(f"use X,Y or X,Y,Z in metres, e.g. 20,0 (got {text!r})")
+    return values
+
+
+_position.__name__ = "position"
+
+
+def _add_sonar_options(parser: argparse.ArgumentParser) -> None:
+    """Sonar and track options, named as sonar users name them (override the scene's)."""
+    group = parser.add_argument_group(
+        "sonar and track (override the scene's [sonar] and [trajectory])"
+    )
+    add = group.add_argument
+    add(
+        "--frequency",
+        type=cli_positive(float),
+        metavar="KHZ",
+        help="centre frequency in kHz (default 400): sets the wavelength of the coherent "
+        "model, the absorption of --absorption and a sinc beam's width, and is written to "
+        "the outputs; the raster model's intensities do not depend on it",
+    )
+    add(
+        "--tilt",
+        type=_tilt,
+        metavar="DEG",
+        help="depression of the beam axis below the horizontal (default 20); it shapes the "
+        "image through the vertical beam (give --beamwidth, or a scene with a beam)",
+    )
+    add(
+        "--beamwidth",
+        type=cli_positive(float),
+        metavar="DEG",
+        help="vertical beam: a Gaussian two-way beam of this full width at half power, about "
+        "the --tilt axis (default: the scene's beam; a bare model has a uniform beam)",
+    )
+    add(
+        "--sound-speed",
+        type=cli_positive(float),
+        metavar="M/S",
+        help="speed of sound (default 1500): sets the wavelength, the ping period for "
+        "--speed, and the sample timing written to .xtf",
+    )
+    add(
+        "--heading",
+        type=_finite,
+        metavar="DEG",
+        help="compass heading of the straight track (0 = north, +y; 90 = east); a bare model "
+        "stays at --position and the track passes it on this heading",
+    )
+    add(
+        "--ping-spacing",
+        type=cli_positive(float),
+        metavar="METRES",
+        help="distance between pings along the track (scene default: its [trajectory] "
+        "spacing; a bare model: the automatic track's length over --pings)",
+    )
+    add(
+        "--speed",
+        type=cli_positive(float),
+        metavar="M/S",
+        help="vehicle speed (1 knot = 0.514 m/s): pings are the distance run in one ping "
+        "period, 2 x range / sound speed, apart",
+    )
+    add(
+        "--track",
+        metavar="FILE.xtf",
+        help="reuse a recording's track: its positions, headings, roll, pitch and altitude "
+        "(the file's, else its bottom track), moved so its middle ping lies over the middle "
+        "of the scene's own track (a bare model: passed at mid-swath to starboard there)",
+    )
+
+
+def _add_placement_options(parser: argparse.ArgumentParser) -> None:
+    """Bare model placement: axis, units, scale, position."""
+    from ..scenes.description import UNITS, UP_AXES
+
+    group = parser.add_argument_group(
+        "bare model files (a scene .toml sets these per [[objects]] entry)"
+    )
+    add = group.add_argument
+    add(
+        "--up",
+        choices=tuple(UP_AXES),
+        help="the file's axis that points up (default: y for glTF and VRML, as their "
+        "specifications say; z for OBJ, PLY, STL, OFF); robotics VRML (choreonoid, OpenHRP) "
+        "is often z-up",
+    )
+    add(
+        "--units",
+        choices=tuple(UNITS),
+        default="m",
+        help="length unit of the file's coordinates (default m); CAD exports are often mm",
+    )
+    add("--scale", type=cli_positive(float), default=1.0, help="extra scale factor (default 1)")
+    add(
+        "--position",
+        type=_position,
+        metavar="X,Y[,Z]",
+        help="where the model's footprint centre goes, metres east and north; Z lifts its "
+        "lowest point above the seabed (default 0: resting on it; < 0 buries it). Default: "
+        "mid-swath to starboard of the middle of the track",
+    )
+
+
+def load_setup(args: argparse.Namespace) -> Any:
+    """The scene of ``render``'s arguments, with the sonar, track and placement options.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed ``render`` options.
+    """
+    from ..scenes.description import Overrides, Placement, load_scene
+
+    if args.old_spacing is not None:
+        warnings.warn(
+            "--spacing is deprecated (it reads like ping spacing); use --scatterer-spacing",
+            DeprecatedOptionWarning,
+            stacklevel=2,
+        )
+        if args.scatterer_spacing is None:
+            args.scatterer_spacing = args.old_spacing
     overrides = Overrides(
         max_range=args.max_range,
         range_bin=args.range_bin,
         altitude=args.altitude,
         pings=args.pings,
         sides=_SIDE_CHOICES[args.side] if args.side else None,
+        frequency_hz=None if args.frequency is None else 1e3 * args.frequency,
+        tilt_deg=args.tilt,
+        beamwidth_deg=args.beamwidth,
+        sound_speed=args.sound_speed,
+        heading_deg=args.heading,
+        ping_spacing=args.ping_spacing,
+        speed=args.speed,
+        track=None if args.track is None else _recorded_track(args.track),
+        placement=Placement(args.up, args.units, args.scale, args.position),
     )
-    setup = load_scene(args.scene, overrides)
+    return load_scene(args.scene, overrides)
+
+
+def _recorded_track(path: str) -> Any:
+    """A recording's track for ``--track``: altitude from the file, else its bottom track."""
+    import numpy as np
+
+    from ..io.xtf import read_xtf_track
+    from ..scenes.description import RecordedTrack
+
+    if Path(path).suffix.lower() != ".xtf":
+        raise SonarRasterError(f"--track {path}: give a recording (.xtf)")
+    traj, altitude, image = read_xtf_track(path)
+    known = np.isfinite(altitude) & (altitude > 0)
+    if not known.all():
+        from ..inversion.bottom import track_bottom
+
+        bottom = track_bottom(image.sides, image.sonar.range_bin)
+        tracked = np.where(bottom.valid, bottom.altitude, np.nan)
+        altitude = np.where(known, altitude, tracked)
+        known = np.isfinite(altitude) & (altitude > 0)
+    if not known.any():
+        raise SonarRasterError(
+            f"--track {path}: no ping has an altitude, in the file or from its bottom track"
+        )
+    rows = np.arange(len(altitude))
+    altitude = np.interp(rows, rows[known], altitude[known])
+    return RecordedTrack(
+        traj.positions[:, :2], altitude, traj.headings, traj.roll, traj.pitch, source=path
+    )
+
+
+def placement_lines(setup: Any) -> list[str]:
+    """One line saying what was placed where, for a bare model (none for a description).
+
+    Parameters
+    ----------
+    setup : SceneSetup
+        A loaded scene; bare models carry ``notes["placement"]``.
+    """
+    placed = setup.notes.get("placement")
+    if not placed:
+        return []
+    size = " x ".join(f"{v:.3g}" for v in placed["size_m"])
+    x, y, z = placed["position_m"]
+    track = placed["track"]
+    how = f"up {placed['up']}, units {placed['units']}" + (
+        f", scale {placed['scale']:g}" if placed["scale"] != 1 else ""
+    )
+    base = "on the seabed" if z == 0 else f"base {z:g} m above the seabed"
+    return [
+        f"placed {placed['model']}: {size} m ({how}) at x {x:.4g} m, y {y:.4g} m, {base}; "
+        f"track ({track['source']}): {track['pings']} pings {track['spacing_m']:.3g} m apart, "
+        f"heading {track['heading_deg']:.4g} deg, altitude {track['altitude_m']:.3g} m, "
+        f"passing it {track['passing_m']:.3g} m to starboard"
+    ]
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``sonar-raster render``."""
+    outputs = _check_outputs(args.output)
+    setup = load_setup(args)
+    setup = apply_sensor_option(args, setup)  # issue 16: --sensor NAME sets the sonar
+    if not args.quiet:
+        for line in placement_lines(setup):
+            print(line)
     _check_in_range(setup)
     _check_size(args, setup, _streamed(args, setup))
     if _streamed(args, setup):
@@ -290,8 +527,8 @@ def _render_image(args: argparse.Namespace, setup: Any) -> Any:
 
     model = _model(args)
     options = dict(setup.coherent)
-    if args.spacing is not None:
-        options["spacing_wavelengths"] = args.spacing
+    if args.scatterer_spacing is not None:
+        options["spacing_wavelengths"] = args.scatterer_spacing
     if args.seed is not None:
         options["seed"] = args.seed
     return render(
@@ -304,6 +541,7 @@ def _render_image(args: argparse.Namespace, setup: Any) -> Any:
         pulse=setup.pulse,
         coherent=options,
         progress=not args.quiet,
+        force=args.force,
     )
 
 
@@ -317,8 +555,9 @@ def _write(args: argparse.Namespace, setup: Any, image: Any, outputs: list[Path]
         if path.suffix.lower() == ".xtf":
             jobs[path] = partial(_write_xtf, image=image, setup=setup)
             continue
+        display = display_from_args(args, setup)  # issue 16: level, palette, geometry
         for final, writer in image_jobs(
-            image, path, bit_depth=args.bits, dynamic_range_db=args.dynamic_range
+            image, path, bit_depth=args.bits, dynamic_range_db=args.dynamic_range, display=display
         ):
             jobs[final] = writer
     return commit(list(jobs.items()))
@@ -343,7 +582,7 @@ def _streamed(args: argparse.Namespace, setup: Any) -> bool:
 def _render_survey(args: argparse.Namespace, setup: Any, outputs: list[Path]) -> int:
     from ..rendering.survey import render_survey
 
-    if effects_from_args(args, setup.effects) is not None:
+    if effects_from_args(args, setup.effects, default=False) is not None:
         raise SonarRasterError(
             "sensor effects are not applied to surveys streamed in blocks (--chunk-pings, or "
             "over 64 M cells) yet; render fewer pings at a time, or add --no-effects"

@@ -57,7 +57,7 @@ from ..trajectory import Trajectory
 
 __all__ = [
     "SkippedPing", "XtfNavigation", "XtfPing", "XtfReader", "iter_pings", "read_xtf",
-    "track_jumps", "write_xtf",
+    "read_xtf_track", "track_jumps", "write_xtf",
 ]  # fmt: skip
 
 log = logging.getLogger(__name__)
@@ -764,6 +764,50 @@ def read_xtf(
         "rejected_fixes": [{"index": k, "reason": why} for k, why in sorted(rejected.items())],
     }
     return SonarImage(sides, sonar, meta), nav
+
+
+def read_xtf_track(
+    path: str | os.PathLike, pings: slice | None = None
+) -> tuple[Trajectory, np.ndarray, SonarImage]:
+    """The track of an XTF recording in local metres, its recorded altitude, and its image.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        The ``.xtf`` file; it must have navigation.
+    pings : slice, optional
+        Which pings to keep, as in :func:`read_xtf`.
+
+    Returns
+    -------
+    trajectory : Trajectory
+        x east, y north in metres from the first ping (UTM for files in degrees), z = minus
+        the sensor depth; headings, roll and pitch from the file, interpolated where missing
+        (:meth:`XtfNavigation.to_trajectory`). Positions that jump off the track are
+        interpolated from their neighbours.
+    altitude : ndarray, shape (pings,), float64
+        The file's altitude above the seabed per ping, metres; NaN where it has none.
+    image : SonarImage
+        The recording (:func:`read_xtf`), e.g. to bottom-track the pings without altitude.
+
+    Raises
+    ------
+    SonarRasterError
+        As :func:`read_xtf`, or if no ping has a position.
+    """
+    image, nav = read_xtf(path, pings)
+    if not nav.valid.any():
+        raise SonarRasterError(f"{path}: no ping has a position; the file has no track to reuse")
+    east, north = nav.projected()
+    jumps = track_jumps(east, north, nav.time)
+    if jumps.any() and not jumps.all():
+        k, good = np.arange(len(east)), np.flatnonzero(~jumps)
+        east, north = np.interp(k, good, east[good]), np.interp(k, good, north[good])
+    traj = nav.to_trajectory()
+    positions = traj.positions.copy()
+    positions[:, 0], positions[:, 1] = east - east[0], north - north[0]
+    track = Trajectory(positions, traj.headings, traj.roll, traj.pitch)
+    return track, np.asarray(nav.altitude, dtype=np.float64), image
 
 
 def _layout(ping: XtfPing) -> tuple[tuple[tuple[str, int], ...], str]:

@@ -3,6 +3,10 @@
 The text is parsed into a tree of :class:`_Node` (PROTO instances already expanded, USE sharing
 the DEF'd node), then walked with the current transform to make one :class:`MeshPart` per
 Shape. Numeric lists (``point [...]``, ``coordIndex [...]``) are converted in bulk with numpy.
+
+Departures from the specification that real model collections contain and that common viewers
+and robotics simulators (choreonoid, OpenHRP) load are read too, each reported once per file by
+a :class:`VrmlDepartureWarning` naming it and its first line (see :data:`DEPARTURES`).
 """
 
 from __future__ import annotations
@@ -10,6 +14,7 @@ from __future__ import annotations
 import logging
 import math
 import re
+import warnings
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import SonarRasterError
+from ..errors import InputWarning, SonarRasterError
 from ..scene import MeshPart
 
 log = logging.getLogger(__name__)
@@ -28,7 +33,7 @@ SEGMENTS = 32
 _HEADER = "#VRML V2.0 utf8"
 _SKIP = re.compile(r"(?:[\s,]+|#[^\n]*)*")
 _TOKEN = re.compile(
-    r"""(?P<num>[+-]?(?:0[xX][0-9a-fA-F]+|(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?))
+    r"""(?P<num>[+-]?(?:0[xX][0-9a-fA-F]+|(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|(?i:nan)\b))
       | (?P<str>"(?:[^"\\]|\\.)*")
       | (?P<punct>[{}\[\]])
       | (?P<id>[^\x00-\x20"#'+,\-.\[\\\]{}0-9\x7f][^\x00-\x20"#',\[\\\]{}\x7f]*)""",
@@ -41,6 +46,20 @@ _IN_OUT = {"eventIn", "eventOut", "inputOnly", "outputOnly"}
 _FIELD_DECL = {"field", "exposedField", "initializeOnly", "inputOutput"}
 _MISSING = object()
 
+#: The departures from VRML97 this reader accepts, found in public robot and environment model
+#: collections (choreonoid, OpenHRP3, rtmros_choreonoid), with what is done about each.
+DEPARTURES = {
+    "no-header": "no '#VRML V2.0 utf8' header line; read as VRML97",
+    "late-header": "the '#VRML V2.0 utf8' header is not on the first line; read as VRML97",
+    "def-no-name": "DEF without a name before a node type; read as an unnamed node",
+    "nan": "'nan' numbers (not numbers, e.g. normals of degenerate faces); faces with a NaN "
+    "corner are dropped",
+}
+
+
+class VrmlDepartureWarning(InputWarning):
+    """A VRML file departs from the specification in a way this reader repairs (one per kind)."""
+
 
 @dataclass
 class _Source:
@@ -49,6 +68,7 @@ class _Source:
     name: str
     text: str
     _breaks: np.ndarray | None = None
+    departures: dict[str, list[int]] = field(default_factory=dict)
 
     def line(self, pos: int) -> int:
         """1-based line number of character offset ``pos``."""
@@ -59,6 +79,22 @@ class _Source:
     def error(self, pos: int, message: str) -> SonarRasterError:
         """Make a one-line error ``name:line: message`` located at ``pos``."""
         return SonarRasterError(f"{self.name}:{self.line(pos)}: {message}")
+
+    def depart(self, pos: int, kind: str, count: int = 1) -> None:
+        """Note a departure of ``kind`` (a key of :data:`DEPARTURES`) at ``pos``."""
+        first, seen = self.departures.get(kind, [pos, 0])
+        self.departures[kind] = [min(first, pos), seen + count]
+
+    def warn(self) -> None:
+        """Emit one warning per departure kind noted so far, then forget them."""
+        for kind, (pos, count) in sorted(self.departures.items(), key=lambda kv: kv[1][0]):
+            places = f" ({count} places)" if count > 1 else ""
+            warnings.warn(
+                f"{self.name}:{self.line(pos)}: departs from VRML97: {DEPARTURES[kind]}{places}",
+                VrmlDepartureWarning,
+                stacklevel=4,
+            )
+        self.departures.clear()
 
 
 @dataclass
@@ -170,9 +206,13 @@ class _Lexer:
             values = np.array(words, dtype=np.float64)
         except ValueError:
             values = self._slow_numbers(words, start)
-        if not np.all(np.isfinite(values)):
-            word = words[int(np.argmin(np.isfinite(values)))]
+        finite = np.isfinite(values)
+        if not np.all(finite | np.isnan(values)):
+            word = words[int(np.argmin(finite | np.isnan(values)))]
             raise self.src.error(self.text.find(word, start), _not_finite(word))
+        if not np.all(finite):
+            word = words[int(np.argmin(finite))]
+            self.src.depart(self.text.find(word, start), "nan", int(np.sum(~finite)))
         return values
 
     def _slow_numbers(self, words: list[str], start: int) -> np.ndarray:
@@ -217,13 +257,12 @@ class _Parser:
     def parse(self) -> list[_Node]:
         """Check the header and parse every statement of the file."""
         text = self.src.text.lstrip("\ufeff")
-        if not text.startswith(_HEADER):
-            hint = (
-                "VRML 1.0 is not supported; convert the file to VRML97"
-                if text.startswith("#VRML V1.0")
-                else f"not a VRML97 file; the first line must be '{_HEADER}'"
-            )
-            raise self.src.error(0, hint)
+        if text.startswith("#VRML V1.0"):
+            raise self.src.error(0, "VRML 1.0 is not supported; convert the file to VRML97")
+        headless = not text.startswith(_HEADER)
+        if headless:
+            late = re.match(r"(?:[ \t]*(?:#[^\n]*)?\r?\n)+[ \t]*" + re.escape(_HEADER), text)
+            self.src.depart(0, "late-header" if late else "no-header")
         self.lex.pos = len(self.src.text) - len(text)  # skip a byte-order mark
         try:
             return self.statements("eof")  # the header line is a comment
@@ -231,6 +270,13 @@ class _Parser:
             raise self.src.error(
                 self.lex.pos, "nodes are nested too deeply; flatten the hierarchy"
             ) from None
+        except SonarRasterError as exc:
+            if headless and "no-header" in self.src.departures:
+                raise SonarRasterError(
+                    f"{self.src.name}: not a VRML97 file (no '{_HEADER}' header line, and not "
+                    f"readable without one: {exc})"
+                ) from None
+            raise
 
     def statements(self, end: str) -> list[_Node]:
         """Nodes up to (and consuming) a token of kind ``end``; PROTO and ROUTE are absorbed."""
@@ -274,8 +320,13 @@ class _Parser:
             return self.defs[name.text]
         def_name = None
         if tok.text == "DEF":
-            def_name = self.lex.expect("id", "a name after DEF").text
-            tok = self.lex.expect("id", f"a node type after DEF {def_name}")
+            name = self.lex.expect("id", "a name after DEF")
+            if self.lex.peek().kind == "{":  # "DEF Transform {": the name was left out
+                self.src.depart(name.pos, "def-no-name")
+                tok = name
+            else:
+                def_name = name.text
+                tok = self.lex.expect("id", f"a node type after DEF {def_name}")
         node = self.node(tok, def_name)
         if def_name is not None:
             self.defs[def_name] = node
@@ -328,14 +379,15 @@ class _Parser:
         """Parse a field value: numbers, string(s), boolean, node(s), NULL or ``IS name``."""
         tok = self.lex.next()
         if tok.kind == "num":
-            values = [_number(tok.text)]
+            words = [tok]
             while self.lex.peek().kind == "num":
-                word = self.lex.next()
-                values.append(_number(word.text))
-                if not math.isfinite(values[-1]):
+                words.append(self.lex.next())
+            values = [_number(word.text) for word in words]
+            for word, value in zip(words, values, strict=True):
+                if math.isnan(value):
+                    self.src.depart(word.pos, "nan")
+                elif not math.isfinite(value):
                     raise self.src.error(word.pos, _not_finite(word.text))
-            if not math.isfinite(values[0]):
-                raise self.src.error(tok.pos, _not_finite(tok.text))
             return np.array(values)
         if tok.kind == "str":
             return _unquote(tok.text)
@@ -504,7 +556,9 @@ def _parse_file(path: Path, stack: tuple[Path, ...]) -> tuple[list[_Node], dict[
     """Root nodes and PROTOs of a file; ``stack`` holds the files that led to it."""
     path = path.resolve()
     parser = _Parser(_Source(path.name, _read_text(path)), path.parent, (*stack, path))
-    return parser.parse(), parser.protos
+    roots = parser.parse()
+    parser.src.warn()
+    return roots, parser.protos
 
 
 def _numbers(node: _Node, name: str, default: Any = None, width: int = 1) -> np.ndarray:
@@ -613,13 +667,30 @@ def _indexed_face_set(node: _Node) -> tuple[np.ndarray, np.ndarray]:
             f"IndexedFaceSet coordIndex {bad[0]:g} is outside its "
             f"{len(points)} points; fix the model file",
         )
-    faces = _fan(index)
+    faces = _finite_faces(points, _fan(index))
     return points, faces if _flag(node, "ccw", True) else faces[:, [0, 2, 1]]
 
 
+def _finite_faces(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Drop faces with a NaN corner ('nan' in the file); NaN points become 0 (unused)."""
+    bad = ~np.all(np.isfinite(points), axis=1)
+    if not bad.any():
+        return faces
+    points[bad] = 0.0
+    return faces[~bad[faces].any(axis=1)] if len(faces) else faces
+
+
+def _whole(node: _Node, name: str, default: int) -> int:
+    """An integer field's value; a NaN or infinite one is an error naming the field."""
+    value = float(_vector(node, name, (default,))[0])
+    if not math.isfinite(value):
+        raise node.src.error(node.pos, f"{node.type} {name} must be a whole number, got {value}")
+    return int(value)
+
+
 def _elevation_grid(node: _Node) -> tuple[np.ndarray, np.ndarray]:
-    nx = int(_vector(node, "xDimension", (0,))[0])
-    nz = int(_vector(node, "zDimension", (0,))[0])
+    nx = _whole(node, "xDimension", 0)
+    nz = _whole(node, "zDimension", 0)
     height = _numbers(node, "height")
     if nx < 2 or nz < 2 or height.size != nx * nz:
         raise node.src.error(
@@ -635,6 +706,7 @@ def _elevation_grid(node: _Node) -> tuple[np.ndarray, np.ndarray]:
     a = (np.arange(nz - 1)[:, None] * nx + np.arange(nx - 1)).ravel()
     b, c, d = a + nx, a + nx + 1, a + 1
     faces = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+    faces = _finite_faces(vertices, faces)
     return vertices, faces if _flag(node, "ccw", True) else faces[:, [0, 2, 1]]
 
 
@@ -766,7 +838,7 @@ class _Walker:
         elif node.type in ("Switch", "LOD"):
             key = "choice" if node.type == "Switch" else "level"
             options = _children(node, key if key in node.fields else "children")
-            pick = int(_vector(node, "whichChoice", (-1,))[0]) if node.type == "Switch" else 0
+            pick = _whole(node, "whichChoice", -1) if node.type == "Switch" else 0
             if 0 <= pick < len(options):
                 self.visit(options[pick], matrix, inner)
         elif node.type == "Shape":
@@ -847,7 +919,9 @@ def parse_vrml(text: str, base_dir: Path | None = None) -> list[MeshPart]:
         On malformed text (message ``<string>:line: ...``), a missing Inline file, an
         unresolvable EXTERNPROTO or an out-of-range coordIndex.
     """
-    roots = _Parser(_Source("<string>", text), base_dir, ()).parse()
+    parser = _Parser(_Source("<string>", text), base_dir, ())
+    roots = parser.parse()
+    parser.src.warn()
     return _Walker("vrml", ()).walk(roots, np.eye(4), None)
 
 

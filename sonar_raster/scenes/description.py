@@ -14,6 +14,7 @@ import math
 import os
 import stat
 import sys
+import warnings
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -21,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from .._checks import positive
-from ..errors import SonarRasterError
+from ..errors import InputWarning, SonarRasterError
 from ..scene import MeshPart, Scene, build_scene
 from ..sonar import SIDES, BeamPattern, Sonar
 from ..trajectory import Trajectory
@@ -56,15 +57,112 @@ class SceneSetup:
     )  # what loading changed (level of detail), for metadata
 
 
+#: Length units of model files, metres per unit (``units`` key, ``--units``).
+UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "km": 1000.0, "in": 0.0254, "ft": 0.3048}
+#: The file axis that points up (``up`` key, ``--up``): rotation angles (x, y, z) in degrees
+#: that turn it to +z (right-handed, so the other two axes stay a right-handed pair).
+UP_AXES = {
+    "z": (0.0, 0.0, 0.0),
+    "y": (90.0, 0.0, 0.0),
+    "x": (0.0, -90.0, 0.0),
+    "-z": (180.0, 0.0, 0.0),
+    "-y": (-90.0, 0.0, 0.0),
+    "-x": (0.0, 90.0, 0.0),
+}
+#: A bare model larger or smaller than this (largest extent, metres) is probably in other
+#: units than the ones it is read in: the load warns, naming --units/--scale.
+PLAUSIBLE_SIZE_M = (0.05, 50.0)
+#: Fewer range bins than this per side image almost nothing: the load warns.
+FEW_BINS = 32
+
+
+@dataclass(frozen=True)
+class Placement:
+    """How a bare model file is put into the world (``--up``, ``--units``, ``--scale``, ...).
+
+    Attributes
+    ----------
+    up : str, optional
+        The file's axis that points up: one of :data:`UP_AXES`; None: by format (glTF and
+        VRML "y", others "z").
+    units : str
+        Length unit of the file's coordinates, a key of :data:`UNITS`.
+    scale : float
+        Extra factor on top of the units, > 0.
+    position : tuple of float, optional
+        ``(x, y)`` or ``(x, y, z)`` in metres: the centre of the model's footprint, and the
+        height of its lowest point above the seabed (default 0: resting on it; negative
+        buries it). None: mid-swath to starboard of the middle of the automatic track.
+    """
+
+    up: str | None = None
+    units: str = "m"
+    scale: float = 1.0
+    position: tuple[float, ...] | None = None
+
+    @property
+    def is_default(self) -> bool:
+        """True when nothing was asked for (the format's defaults apply)."""
+        return self == Placement()
+
+
+@dataclass(frozen=True)
+class RecordedTrack:
+    """A track taken from a recording (``render --track FILE.xtf``), in local metres.
+
+    Attributes
+    ----------
+    positions : ndarray, shape (n, 2), float64
+        Horizontal positions, metres east and north of an arbitrary local origin.
+    altitude : ndarray, shape (n,), float64
+        Altitude above the seabed per ping, metres, > 0.
+    headings, roll, pitch : ndarray, shape (n,), float64
+        Radians, as in :class:`Trajectory`.
+    source : str
+        Where it came from, for messages and metadata.
+    """
+
+    positions: np.ndarray
+    altitude: np.ndarray
+    headings: np.ndarray
+    roll: np.ndarray
+    pitch: np.ndarray
+    source: str = ""
+
+    def placed(self, middle: np.ndarray, ground_z: float) -> Trajectory:
+        """The track moved so its middle ping is over ``middle`` (x, y), seabed at ground_z."""
+        mid = len(self.positions) // 2
+        xy = self.positions - self.positions[mid] + np.asarray(middle, dtype=np.float64)[:2]
+        pos = np.column_stack([xy, ground_z + self.altitude])
+        return Trajectory(pos, self.headings, self.roll, self.pitch)
+
+
 @dataclass(frozen=True)
 class Overrides:
-    """Command-line overrides; None keeps the description's value."""
+    """Command-line overrides; None keeps the description's value.
+
+    ``frequency_hz``, ``tilt_deg``, ``sound_speed`` replace the ``[sonar]`` values;
+    ``beamwidth_deg`` replaces its beam by a Gaussian two-way vertical beam of that full width
+    at half power; ``heading_deg`` and ``ping_spacing`` (metres) the straight track's;
+    ``speed`` (m/s) sets the ping spacing to the distance run in one ping period (two-way
+    travel time to the maximum range); ``track`` replaces the track by a recorded one;
+    ``placement`` places a bare model file (a description places its objects itself).
+    """
 
     max_range: float | None = None
     range_bin: float | None = None
     altitude: float | None = None
     pings: int | None = None
     sides: tuple[str, ...] | None = None
+    frequency_hz: float | None = None
+    tilt_deg: float | None = None
+    beamwidth_deg: float | None = None
+    sound_speed: float | None = None
+    heading_deg: float | None = None
+    ping_spacing: float | None = None
+    speed: float | None = None
+    track: RecordedTrack | None = None
+    placement: Placement | None = None
 
 
 def load_scene_file(path: str | Path, overrides: Overrides | None = None) -> SceneSetup:
@@ -86,10 +184,17 @@ def load_scene_file(path: str | Path, overrides: Overrides | None = None) -> Sce
     ov = overrides or Overrides()
     _check_regular_file(path)
     suffix = path.suffix.lower()
+    _check_overrides(ov)
     if suffix == ".toml":
-        return _from_description(path, ov)
+        if ov.placement is not None and not ov.placement.is_default:
+            raise SonarRasterError(
+                f"{path.name}: --up, --units, --scale and --position place a bare model file; "
+                "in a scene description give 'up', 'units', 'scale' and 'position' per "
+                "[[objects]] entry"
+            )
+        return _checked_setup(_from_description(path, ov), ov)
     if suffix in MODEL_SUFFIXES:
-        return _from_model(path, ov)
+        return _checked_setup(_from_model(path, ov), ov)
     raise SonarRasterError(
         f"{path}: unknown scene extension {suffix or '(none)'!r}; use .toml or a model file "
         f"({', '.join(MODEL_SUFFIXES)})"
@@ -133,6 +238,50 @@ def _check_regular_file(path: Path) -> None:
     if not stat.S_ISREG(mode):
         kind = "a FIFO (named pipe)" if stat.S_ISFIFO(mode) else "not a regular file"
         raise SonarRasterError(f"scene {path} is {kind}; give a .toml or model file")
+
+
+def _check_overrides(ov: Overrides) -> None:
+    """Refuse overrides that contradict each other, naming the options."""
+    if ov.ping_spacing is not None and ov.speed is not None:
+        raise SonarRasterError("give --ping-spacing or --speed, not both")
+    if ov.track is not None:
+        clash = [
+            name
+            for name, value in (
+                ("--heading", ov.heading_deg),
+                ("--ping-spacing", ov.ping_spacing),
+                ("--speed", ov.speed),
+                ("--altitude", ov.altitude),
+            )
+            if value is not None
+        ]
+        if clash:
+            raise SonarRasterError(
+                f"{', '.join(clash)} cannot be combined with --track: the recorded track "
+                "sets the headings, the spacing and the altitude"
+            )
+
+
+def _checked_setup(setup: SceneSetup, ov: Overrides) -> SceneSetup:
+    """Warn about sonar settings that image little (few bins, a tilt with no beam)."""
+    sonar = setup.sonar
+    if sonar.n_bins < FEW_BINS:
+        warnings.warn(
+            f"range bin {sonar.range_bin:g} m over the {sonar.max_range:g} m range leaves "
+            f"{sonar.n_bins} range bin{'s' if sonar.n_bins != 1 else ''} per side: the image "
+            f"is {sonar.n_bins} pixel{'s' if sonar.n_bins != 1 else ''} wide; lower "
+            "--range-bin (e.g. 0.05) or raise --range",
+            InputWarning,
+            stacklevel=3,
+        )
+    if ov.tilt_deg is not None and sonar.beam.is_uniform:
+        warnings.warn(
+            f"--tilt {ov.tilt_deg:g} changes nothing with a uniform vertical beam; give "
+            "--beamwidth (or a beam in the scene's [sonar]) for the tilt to shape the image",
+            InputWarning,
+            stacklevel=3,
+        )
+    return setup
 
 
 #: Peak bytes per ping of a straight track (poses, attitude and their temporaries).
@@ -209,14 +358,21 @@ def _sonar(table: dict, base: Path, ov: Overrides, where: str) -> Sonar:
     frequency = float(_take(table, "frequency_hz", 400e3, number, where))
     sides = _take(table, "sides", list(SIDES), list, where)
     sound_speed = float(_take(table, "sound_speed", 1500.0, number, where))
+    tilt_deg = float(_take(table, "tilt_deg", 20.0, number, where))
+    frequency = frequency if ov.frequency_hz is None else ov.frequency_hz
+    sound_speed = sound_speed if ov.sound_speed is None else ov.sound_speed
+    tilt_deg = tilt_deg if ov.tilt_deg is None else ov.tilt_deg
     if not (math.isfinite(sound_speed) and sound_speed > 0):
         raise SonarRasterError(f"{where}: sound_speed must be > 0 m/s, got {sound_speed}")
+    beam_spec = table.pop("beam", None)
+    if ov.beamwidth_deg is not None:
+        beam_spec = {"kind": "gaussian", "beamwidth_deg": ov.beamwidth_deg}
     sonar = Sonar(
         frequency_hz=frequency,
         max_range=float(_take(table, "max_range", 50.0, number, where)),
         range_bin=float(_take(table, "range_bin", 0.05, number, where)),
-        tilt=math.radians(float(_take(table, "tilt_deg", 20.0, number, where))),
-        beam=_beam(table.pop("beam", None), frequency, sound_speed, base, where),
+        tilt=math.radians(tilt_deg),
+        beam=_beam(beam_spec, frequency, sound_speed, base, where),
         sides=tuple(sides),
         sound_speed=sound_speed,
     )
@@ -281,6 +437,13 @@ def _coherent(table: dict, where: str) -> dict:
         _no_leftovers(beam, f"{where} [coherent] horizontal_beam")
     _no_leftovers(table, f"{where} [coherent]")
     return out
+
+
+def _sensor_preset(data: dict, where: str) -> dict:
+    """Issue 16 hook: expand ``[sonar] preset`` (see effects.presets.apply_sensor_preset)."""
+    from ..effects.presets import apply_sensor_preset
+
+    return apply_sensor_preset(data, where)
 
 
 # -- sensor effects and materials --------------------------------------------------------------
@@ -392,23 +555,26 @@ def _object(spec: dict, base: Path, seabed: Heightfield | None, k: int) -> list[
         )
     number = (int, float)
     up = _take(spec, "up", up, str, where)
-    if up not in ("y", "z"):
-        raise SonarRasterError(f'{where}: \'up\' must be "y" or "z"')
+    if up not in UP_AXES:
+        raise SonarRasterError(f"{where}: 'up' must be one of {', '.join(UP_AXES)}, got {up!r}")
+    units = _take(spec, "units", "m", str, where)
+    if units not in UNITS:
+        raise SonarRasterError(f"{where}: 'units' must be one of {', '.join(UNITS)}, got {units!r}")
     position = _vector(_take(spec, "position", [0.0, 0.0], list, where), (2, 3), "position", where)
     rotation = _rotation(
         _vector(
             _take(spec, "rotation_deg", [0.0, 0.0, 0.0], list, where), (3,), "rotation_deg", where
         )
     )
-    if up == "y":
-        rotation = rotation @ _rotation(np.array([90.0, 0.0, 0.0]))
+    rotation = rotation @ _rotation(np.array(UP_AXES[up]))
     scale = float(_take(spec, "scale", 1.0, number, where))
     sink = float(_take(spec, "sink", 0.0, number, where))
     reflectivity = _reflectivity(spec, None, where)
     name = _take(spec, "name", None, str, where)
     _no_leftovers(spec, where)
-    if not scale > 0:
+    if not (math.isfinite(scale) and scale > 0):
         raise SonarRasterError(f"{where}: 'scale' must be > 0")
+    scale *= UNITS[units]
     moved = [(p.vertices @ rotation.T) * scale for p in parts]
     lowest = min(float(v[:, 2].min()) for v in moved)
     if len(position) == 2:  # stand it on the seabed (or on z = 0 without one)
@@ -432,12 +598,28 @@ def _object(spec: dict, base: Path, seabed: Heightfield | None, k: int) -> list[
 
 # -- trajectory --------------------------------------------------------------------------------
 def _trajectory(
-    table: dict, ground_z: float, base: Path, ov: Overrides, where: str
+    table: dict, ground_z: float, base: Path, ov: Overrides, where: str, sonar: Sonar
 ) -> tuple[Trajectory, float]:
     number = (int, float)
     if "csv" in table:
         path = base / str(table.pop("csv"))
         _no_leftovers(table, f"{where} [trajectory]")
+        if ov.track is not None:
+            return _recorded(ov.track, Trajectory.from_csv(str(path)), ground_z)
+        given = [
+            name
+            for name, value in (
+                ("--heading", ov.heading_deg),
+                ("--ping-spacing", ov.ping_spacing),
+                ("--speed", ov.speed),
+            )
+            if value is not None
+        ]
+        if given:
+            raise SonarRasterError(
+                f"{where}: the track comes from {path.name}; {', '.join(given)} apply to "
+                "straight tracks (start, heading_deg, spacing in [trajectory])"
+            )
         traj = Trajectory.from_csv(str(path))
         return traj, float(traj.positions[0, 2] - ground_z)
     start = _vector(_take(table, "start", [0.0, 0.0], list, where), (2,), "start", where)
@@ -453,15 +635,28 @@ def _trajectory(
         altitude = ov.altitude
     if ov.pings is not None:
         pings = ov.pings
+    if ov.heading_deg is not None:
+        heading = ov.heading_deg
+    override = _spacing(ov, sonar)
+    if override is not None:
+        spacing = override
     if not (math.isfinite(altitude) and altitude > 0):
         raise SonarRasterError(f"altitude must be > 0 metres, got {altitude}")
     z = ground_z + altitude
     _check_track_size(pings)
     line = Trajectory.straight((start[0], start[1], z), heading, spacing, pings)
+    if ov.track is not None:
+        return _recorded(ov.track, line, ground_z)
     # Crab turns the vehicle (and its fans) off the course; pitch tilts the fans forward.
     attitude = np.radians([crab, roll, pitch])
     traj = Trajectory(line.positions, line.headings + attitude[0], attitude[1], attitude[2])
     return traj, altitude
+
+
+def _recorded(track: RecordedTrack, own: Trajectory, ground_z: float) -> tuple[Trajectory, float]:
+    """The recorded track, its middle ping over the middle of the scene's own track."""
+    middle = own.positions[own.n_pings // 2, :2]
+    return track.placed(middle, ground_z), float(np.median(track.altitude))
 
 
 def _from_description(path: Path, ov: Overrides) -> SceneSetup:
@@ -471,6 +666,7 @@ def _from_description(path: Path, ov: Overrides) -> SceneSetup:
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise SonarRasterError(f"{where}: not valid TOML ({exc})") from None
     base = path.parent
+    data = _sensor_preset(data, where)  # issue 16: [sonar] preset = "NAME" (effects/presets.py)
     sonar = _sonar(_table(data, "sonar", where), base, ov, where)
     notes: dict = {}
     sea = _seabed(_table(data, "seabed", where), base, where, sonar, notes)
@@ -487,7 +683,7 @@ def _from_description(path: Path, ov: Overrides) -> SceneSetup:
         raise SonarRasterError(f"{where}: unknown top-level key(s) {', '.join(sorted(unknown))}")
     scene = build_scene(parts)
     ground = scene.ground_z if sea else 0.0
-    traj, altitude = _trajectory(_table(data, "trajectory", where), ground, base, ov, where)
+    traj, altitude = _trajectory(_table(data, "trajectory", where), ground, base, ov, where, sonar)
     pulse = _pulse(_table(data, "pulse", where), sonar, where)
     coherent = _coherent(_table(data, "coherent", where), where)
     effects = _effects(_table(data, "effects", where), base, where)
@@ -495,29 +691,131 @@ def _from_description(path: Path, ov: Overrides) -> SceneSetup:
 
 
 def _from_model(path: Path, ov: Overrides) -> SceneSetup:
-    """A bare model on a flat sandy seabed, mid-swath to starboard of a track passing it."""
+    """A bare model on a flat sandy seabed, mid-swath to starboard of a track passing it.
+
+    The model is turned and scaled by ``ov.placement``, its footprint centred at the placement's
+    position (default: mid-swath to starboard of the track's middle ping); the automatic
+    straight track (heading ``ov.heading_deg``, default 0) is about six model sizes long and
+    passes it at half the maximum slant range. A recorded track (``ov.track``) passes it the
+    same way at its middle ping.
+    """
     sonar = _sonar({}, path.parent, ov, path.name)
-    altitude = ov.altitude if ov.altitude is not None else 10.0
+    place = ov.placement or Placement()
+    spec: dict[str, Any] = {"file": path.name, "position": [0.0, 0.0, 0.0], "units": place.units}
+    spec["scale"] = place.scale
+    if place.up is not None:
+        spec["up"] = place.up
+    parts = _object(spec, path.parent, None, 0)
+    corners = np.concatenate([p.vertices for p in parts])
+    low, high = corners.min(axis=0), corners.max(axis=0)
+    extent = high - low
+    size = float(extent.max())
+    up = place.up or ("y" if path.suffix.lower() in _Y_UP_SUFFIXES else "z")
+    _warn_size(path.name, size, place)
+    track = ov.track
+    if track is not None:
+        heading = float(track.headings[len(track.headings) // 2])
+        altitude = float(np.median(track.altitude))
+    else:
+        heading = math.radians(ov.heading_deg or 0.0)
+        altitude = ov.altitude if ov.altitude is not None else 10.0
     if not (math.isfinite(altitude) and altitude > 0):
         raise SonarRasterError(f"altitude must be > 0 metres, got {altitude}")
     r_mid = 0.5 * sonar.max_range
     ground_range = math.sqrt(max(r_mid**2 - altitude**2, (0.25 * sonar.max_range) ** 2))
-    placed = _object({"file": path.name, "position": [0.0, 0.0]}, path.parent, None, 0)
-    corners = np.concatenate([p.vertices for p in placed])
-    # Centre the model's footprint (not its file origin) at mid-swath, abeam of mid-track.
-    shift = np.array([ground_range, 0.0, 0.0])
-    shift[:2] -= 0.5 * (corners[:, :2].min(axis=0) + corners[:, :2].max(axis=0))
-    objects = [replace(p, vertices=p.vertices + shift) for p in placed]
-    size = max(float(np.ptp(corners, axis=0).max()), 0.1)
+    along = np.array([math.sin(heading), math.cos(heading)])
+    starboard = np.array([math.cos(heading), -math.sin(heading)])
+    if place.position is not None:
+        target = np.asarray(place.position[:2], dtype=np.float64)
+        middle = target - ground_range * starboard
+    else:
+        middle = np.zeros(2)
+        target = middle + ground_range * starboard
+    base = place.position[2] if place.position is not None and len(place.position) > 2 else 0.0
+    shift = np.array([*(target - 0.5 * (low[:2] + high[:2])), base - low[2]])
+    objects = [replace(p, vertices=p.vertices + shift) for p in parts]
+    if track is not None:
+        traj = track.placed(middle, 0.0)
+    else:
+        traj = _auto_track(ov, sonar, middle, along, heading, altitude, size)
+    xy = np.vstack([traj.positions[:, :2], target])
+    reach = sonar.max_range + 10.0
+    lo, hi = xy.min(axis=0) - reach, xy.max(axis=0) + reach
+    seabed = make_seabed("flat", size=tuple(hi - lo), center=tuple(0.5 * (lo + hi)), depth=0.0)
+    scene = build_scene([seabed.mesh(DEFAULT_SEABED_REFLECTIVITY, "seabed"), *objects])
+    placed = {
+        "model": path.name,
+        "size_m": [float(v) for v in extent],
+        "up": up,
+        "units": place.units,
+        "scale": place.scale,
+        "position_m": [float(v) for v in (*target, base)],
+        "track": {
+            "source": track.source if track is not None else "automatic",
+            "pings": traj.n_pings,
+            "spacing_m": traj.typical_spacing,
+            "heading_deg": math.degrees(heading) % 360.0,
+            "altitude_m": altitude,
+            "middle_m": [float(v) for v in middle],
+            "passing_m": ground_range,
+        },
+    }
+    return SceneSetup(scene, sonar, traj, str(path), altitude, notes={"placement": placed})
+
+
+def _auto_track(
+    ov: Overrides,
+    sonar: Sonar,
+    middle: np.ndarray,
+    along: np.ndarray,
+    heading: float,
+    altitude: float,
+    size: float,
+) -> Trajectory:
+    """The straight track past a bare model: about six model sizes (at least 20 m) long."""
+    spacing = _spacing(ov, sonar)
     length = max(20.0, 6.0 * size)
-    pings = ov.pings if ov.pings is not None else 200
+    if spacing is None:
+        pings = ov.pings if ov.pings is not None else 200
+        spacing = length / max(pings - 1, 1)
+    else:
+        pings = ov.pings if ov.pings is not None else int(math.ceil(length / spacing)) + 1
     _check_track_size(pings)
-    seabed = make_seabed(
-        "flat", size=(2.2 * sonar.max_range, length + 20.0), center=(0.0, 0.0), depth=0.0
+    start = middle - 0.5 * spacing * (pings - 1) * along
+    return Trajectory.straight(
+        (start[0], start[1], altitude), math.degrees(heading), spacing, pings
     )
-    parts = [seabed.mesh(DEFAULT_SEABED_REFLECTIVITY, "seabed"), *objects]
-    scene = build_scene(parts)
-    traj = Trajectory.straight(
-        (0.0, -0.5 * length, altitude), 0.0, length / max(pings - 1, 1), pings
-    )
-    return SceneSetup(scene, sonar, traj, str(path), altitude)
+
+
+def _spacing(ov: Overrides, sonar: Sonar) -> float | None:
+    """Ping spacing from --ping-spacing, or --speed times the ping period (2 R / c)."""
+    if ov.speed is not None:
+        return ov.speed * 2.0 * sonar.max_range / sonar.sound_speed
+    return ov.ping_spacing
+
+
+def _warn_size(name: str, size: float, place: Placement) -> None:
+    """Warn when a model is implausibly large or small for a seabed object, naming fixes."""
+    small, large = PLAUSIBLE_SIZE_M
+    read = f"read in {place.units}" + (f" with scale {place.scale:g}" if place.scale != 1 else "")
+    if size > large:
+        hints = []
+        for unit in ("mm", "cm", "in"):
+            factor = UNITS[unit] / UNITS[place.units]
+            if factor < 1 and small <= size * factor <= large:
+                hints.append(f"--units {unit} ({size * factor:.3g} m)")
+        fix = " or ".join(hints[:2]) if hints else f"--scale {10.0 / size:.3g} (10 m)"
+        warnings.warn(
+            f"{name} is {size:.4g} m across ({read}), over {large:g} m: if the file is not in "
+            f"{place.units}, pass {fix}; or --scale to size it",
+            InputWarning,
+            stacklevel=3,
+        )
+    elif size < small:
+        warnings.warn(
+            f"{name} is {size:.3g} m across ({read}), under {small * 100:g} cm: it will show as "
+            f"a speck; if the file is in other units pass --units, or enlarge it with "
+            f"--scale (--scale {1.0 / max(size, 1e-12):.3g} makes it 1 m)",
+            InputWarning,
+            stacklevel=3,
+        )

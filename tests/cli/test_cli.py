@@ -44,7 +44,7 @@ def test_bare_model_renders_on_a_default_seabed(tmp_path):
     model = tmp_path / "cube.obj"
     model.write_text(CUBE_OBJ)
     out = tmp_path / "cube.exr"
-    assert main(["render", str(model), "-o", str(out), "--pings", "40", "-q"]) == 0
+    assert main(["render", str(model), "-o", str(out), "--pings", "40", "-q", "--ideal"]) == 0
     sides, _ = read_exr(out)
     star = sides["starboard"]
     # The cube stands mid-swath to starboard: its echo and shadow break the seabed's profile.
@@ -153,7 +153,7 @@ def test_existing_output_survives_a_failed_render(tmp_path):
 
 def test_reference_renderer_option_agrees_with_gl(tmp_path):
     gl, ref = tmp_path / "gl.exr", tmp_path / "ref.exr"
-    common = ["flat_calibration", "--pings", "4", "--side", "starboard", "-q"]
+    common = ["flat_calibration", "--pings", "4", "--side", "starboard", "-q", "--ideal"]
     assert main(["render", *common, "-o", str(gl)]) == 0
     assert main(["render", *common, "-o", str(ref), "--renderer", "reference"]) == 0
     a = read_exr(gl)[0]["starboard"].astype(np.float64)
@@ -164,7 +164,9 @@ def test_reference_renderer_option_agrees_with_gl(tmp_path):
 def test_coherent_model(tmp_path):
     out = tmp_path / "c.exr"
     args = ["render", "flat_calibration", "-o", str(out), "--model", "coherent", "--pings", "4"]
-    assert main([*args, "--spacing", "8", "--seed", "2", "--side", "starboard", "-q"]) == 0
+    assert (
+        main([*args, "--scatterer-spacing", "8", "--seed", "2", "--side", "starboard", "-q"]) == 0
+    )
     sides, _ = read_exr(out)
     meta = json.loads((tmp_path / "c.json").read_text())
     assert meta["metadata"]["renderer"] == "coherent" and meta["metadata"]["seed"] == 2

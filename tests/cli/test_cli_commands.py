@@ -20,7 +20,9 @@ _REQUIRED = {
 
 
 def test_every_command_is_a_module_with_its_parser_and_run():
-    assert list(app.COMMANDS) == ["render", "invert", "dataset", "track", "scenes", "doctor"]
+    assert list(app.COMMANDS) == [
+        "render", "invert", "dataset", "track", "scenes", "sensors", "doctor"
+    ]  # fmt: skip
     for name, module in app.COMMANDS.items():
         assert module.__name__ == f"sonar_raster.cli.{name}"
         assert callable(module.add_parser) and callable(module.run)
@@ -59,7 +61,7 @@ def test_render_calls_the_library_entry(monkeypatch, tmp_path, model):
 
     monkeypatch.setattr(entry, "render", fake)
     args = ["render", "flat_calibration", "-o", str(tmp_path / "o.exr"), "--pings", "3", "-q"]
-    args += ["--model", model, "--spacing", "4", "--seed", "7", "--oversample", "3"]
+    args += ["--model", model, "--scatterer-spacing", "4", "--seed", "7", "--oversample", "3"]
     with pytest.raises(_Stop):
         app.main(args)
     assert seen["model"] == model and seen["progress"] is False

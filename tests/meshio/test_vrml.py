@@ -399,7 +399,11 @@ def test_gzipped_file_loads(tmp_path):
 @pytest.mark.parametrize(
     ("text", "message"),
     [
-        ("Group { }", r"<string>:1: not a VRML97 file; the first line must be '#VRML V2\.0 utf8'"),
+        (
+            "solid cube\nfacet normal 0 0 1\n",  # an ASCII STL under a .wrl name
+            r"<string>: not a VRML97 file \(no '#VRML V2\.0 utf8' header line, and not readable "
+            r"without one: <string>:1: expected '\{' after solid",
+        ),
         ("#VRML V1.0 ascii\nSeparator { }", r"<string>:1: VRML 1\.0 is not supported"),
         (
             HEADER + "Transform {\n children [\n Shape { }\n ]\n",

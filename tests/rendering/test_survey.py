@@ -88,7 +88,7 @@ def test_cli_streams_with_chunk_pings(tmp_path, capsys):
 def test_streamed_and_whole_xtf_read_back_the_same(tmp_path):
     from sonar_raster.io.xtf import read_xtf
 
-    assert main(["render", "default", "-o", str(tmp_path / "whole.xtf"), "-q"]) == 0
+    assert main(["render", "default", "-o", str(tmp_path / "whole.xtf"), "-q", "--ideal"]) == 0
     code = main(["render", "default", "-o", str(tmp_path / "s.xtf"), "--chunk-pings", "64", "-q"])
     assert code == 0
     whole, nav_whole = read_xtf(tmp_path / "whole.xtf")
