@@ -20,7 +20,7 @@ import warnings
 from typing import Any
 
 from ..errors import InputWarning, SonarRasterError
-from . import dataset, doctor, invert, render, scenes, sensors, track
+from . import dataset, doctor, insert, invert, render, scenes, sensors, track
 
 EXIT_BAD_INPUT = 2
 
@@ -29,6 +29,7 @@ COMMANDS = {
     "render": render,
     "invert": invert,
     "dataset": dataset,
+    "insert": insert,  # issue 17
     "track": track,
     "scenes": scenes,
     "sensors": sensors,  # issue 16

@@ -183,6 +183,53 @@ class ObjectSpec:
 
 
 @dataclass(frozen=True)
+class BackgroundSpec:
+    """``[background]``: real recordings whose windows replace the simulated seabed.
+
+    Attributes
+    ----------
+    recordings : tuple of str
+        XTF files (resolved against the config's folder).
+    samples : str
+        What their samples are: "auto", "amplitude" or "intensity".
+    seabed_reflectivity : float
+        Reflectivity the recordings' seabed is taken to have.
+    """
+
+    recordings: tuple[str, ...]
+    samples: str = "auto"
+    seabed_reflectivity: float = 0.3
+
+
+def _background(table: dict | None, base: Path, where: str) -> BackgroundSpec | None:
+    """Parse ``[background]``; None when the config has none."""
+    if table is None:
+        return None
+    if not isinstance(table, dict):
+        raise SonarRasterError(f"{where}: [background] must be a table")
+    table = dict(table)
+    files = table.pop("recordings", None)
+    if not isinstance(files, list) or not files or not all(isinstance(f, str) for f in files):
+        raise SonarRasterError(
+            f"{where}: 'recordings' must be a list of .xtf files, e.g. [\"a.xtf\"]"
+        )
+    samples = table.pop("samples", "auto")
+    if samples not in ("auto", "amplitude", "intensity"):
+        raise SonarRasterError(f"{where}: 'samples' must be auto, amplitude or intensity")
+    refl = _number(table.pop("seabed_reflectivity", 0.3), f"{where} 'seabed_reflectivity'")
+    _no_leftovers(table, where)
+    if refl <= 0:
+        raise SonarRasterError(f"{where}: 'seabed_reflectivity' must be > 0")
+    paths = []
+    for f in files:
+        path = (base / f).resolve()
+        if path.suffix.lower() != ".xtf" or not path.is_file():
+            raise SonarRasterError(f"{where}: recording {f} is not an .xtf file that exists")
+        paths.append(str(path))
+    return BackgroundSpec(tuple(paths), samples, refl)
+
+
+@dataclass(frozen=True)
 class DatasetConfig:
     """A parsed dataset configuration (plain, picklable data)."""
 
@@ -209,6 +256,7 @@ class DatasetConfig:
     effects: dict[str, Any] | None
     digest: str = ""
     raw: dict = field(default_factory=dict, repr=False)
+    background: BackgroundSpec | None = None
 
     @property
     def categories(self) -> tuple[str, ...]:
@@ -469,6 +517,7 @@ def load_dataset_config(path: str | Path) -> DatasetConfig:
     effects = data.pop("effects", None)
     if effects is not None and not isinstance(effects, dict):
         raise SonarRasterError(f"{where}: [effects] must be a table")
+    background = _background(data.pop("background", None), path.parent, f"{where} [background]")
     _no_leftovers(data, f"{where} (top level)")
     config = DatasetConfig(
         source=str(path.resolve()),
@@ -493,6 +542,7 @@ def load_dataset_config(path: str | Path) -> DatasetConfig:
         render=render,
         effects=effects,
         raw=raw,
+        background=background,
     )
     return _with_digest(config)
 
@@ -509,4 +559,6 @@ def _with_digest(config: DatasetConfig) -> DatasetConfig:
         if spec.file is not None:
             mesh = config.base / spec.file
             h.update(mesh.read_bytes() if mesh.is_file() else b"<missing>")
+    for recording in config.background.recordings if config.background else ():
+        h.update(Path(recording).read_bytes())
     return replace(config, digest=h.hexdigest())

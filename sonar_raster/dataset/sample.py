@@ -225,6 +225,8 @@ def make_sample(config: DatasetConfig, seed: int, index: int, renderer: Any) -> 
         sidecar) as bytes by relative path, and the record: ``index``, ``status`` "ok",
         ``image`` (COCO image entry), ``annotations``, ``files`` and ``timings`` (seconds).
     """
+    if config.background is not None:
+        return _background_sample(config, seed, index, renderer)
     t0, cpu0 = time.perf_counter(), time.process_time()
     drawn = draw_sample(config, seed, index)
     t1 = time.perf_counter()
@@ -312,3 +314,66 @@ def _plain(value: Any) -> Any:
     if isinstance(value, np.ndarray):
         return value.tolist()
     raise TypeError(f"{type(value).__name__} is not JSON serialisable")
+
+
+def _background_sample(config: DatasetConfig, seed: int, index: int, renderer: Any) -> Sample:
+    """A sample on a real recording's window (``[background]``, :mod:`.background`)."""
+    from .background import draw_background_sample
+
+    t0, cpu0 = time.perf_counter(), time.process_time()
+    made = draw_background_sample(config, seed, index, renderer)
+    ins, drawn = made["insertion"], made["drawn"]
+    t1 = time.perf_counter()
+    sides = [s for s in config.sides if s in ins.intensity]
+    instance = to_display({s: ins.instance[s] for s in sides})
+    classes = to_display({s: ins.classes[s] for s in sides})
+    categories = [d["category_id"] for d in drawn]
+    annotations = annotate(instance, classes, categories, config.box, config.min_pixels)
+    deterministic_meta = {"dataset": config.name, "index": int(index), "seed": int(seed)}
+    full = ins.image(deterministic_meta)
+    image = SonarImage({s: full.sides[s] for s in sides}, full.sonar, deterministic_meta)
+    t2 = time.perf_counter()
+    encoded = _encode(image, instance, classes, config)
+    height, width = instance.shape
+    paths = sample_paths(index, config.formats)
+    encoded["yolo"] = yolo_lines(annotations, width, height).encode()
+    visible = {a["instance"]: a for a in annotations}
+    objects = [
+        {"instance": k + 1, **d, **o.record(), "visible": k + 1 in visible,
+         "bbox": visible[k + 1]["bbox"] if k + 1 in visible else None,
+         "shadow_bbox": visible[k + 1]["shadow_bbox"] if k + 1 in visible else None}
+        for k, (d, o) in enumerate(zip(drawn, ins.objects, strict=True))
+    ]  # fmt: skip
+    sidecar = {
+        "dataset": config.name,
+        "config_digest": config.digest,
+        **made["params"],
+        "objects": objects,
+        "recording_stats": {s: ins.stats[s].record() for s in sides},
+        "image": {"height": height, "width": width, "sides": sides},
+        "files": paths,
+        "layout": "rows=pings; columns=port bins far->near, then starboard bins near->far",
+        "classes": CLASS_NAMES,
+        "labels": {"shadow_ratio": config.shadow_ratio, "box": config.box},
+    }
+    text = json.dumps(sidecar, indent=1, allow_nan=False, default=_plain)
+    encoded["sidecar"] = (text + "\n").encode()
+    t3 = time.perf_counter()
+    record = {
+        "index": int(index),
+        "status": "ok",
+        "files": paths,
+        "image": {"file_name": paths["image"], "width": int(width), "height": int(height)},
+        "annotations": annotations,
+        "timings": {
+            "scene_s": 0.0,
+            "render_s": t1 - t0,  # drawing, rendering and compositing the insertion
+            "shadow_s": 0.0,
+            "labels_s": t2 - t1,
+            "effects_s": 0.0,
+            "encode_s": t3 - t2,
+            "cpu_s": time.process_time() - cpu0,
+        },
+        "pid": os.getpid(),
+    }
+    return Sample({paths[kind]: data for kind, data in encoded.items()}, record)

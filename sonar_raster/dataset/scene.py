@@ -95,14 +95,31 @@ def _user_mesh(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return np.concatenate(verts), np.concatenate(faces), np.concatenate(refl)
 
 
-def _draw_params(spec: ObjectSpec, rng: np.random.Generator) -> dict[str, Any]:
+def draw_object_params(spec: ObjectSpec, rng: np.random.Generator) -> dict[str, Any]:
+    """Draw an object entry's own parameters (a rock's seed too).
+
+    Parameters
+    ----------
+    spec : ObjectSpec
+    rng : numpy.random.Generator
+    """
     params = {key: dist.draw(rng) for key, dist in spec.params}
     if spec.primitive == "rock" and "seed" not in params:
         params["seed"] = int(rng.integers(2**31))
     return params
 
 
-def _object_mesh(spec: ObjectSpec, params: dict, base: Path) -> tuple[np.ndarray, np.ndarray]:
+def object_mesh_of(spec: ObjectSpec, params: dict, base: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices and faces of an object entry with drawn ``params`` (a model file turned z-up).
+
+    Parameters
+    ----------
+    spec : ObjectSpec
+    params : dict
+        From :func:`draw_object_params`.
+    base : Path
+        Folder model files are resolved against.
+    """
     if spec.primitive is not None:
         return build_primitive(spec.primitive, params)
     v, f, _ = _user_mesh(base / str(spec.file))
@@ -267,7 +284,7 @@ def _draw_instance(
     ground_max: float,
     length: float,
 ) -> dict[str, Any]:
-    params = _draw_params(spec, rng)
+    params = draw_object_params(spec, rng)
     reflectivity = float(spec.reflectivity.draw(rng))
     scale = float(spec.scale.draw(rng))
     burial = float(spec.burial_fraction.draw(rng))
@@ -278,7 +295,7 @@ def _draw_instance(
             f"drawn scale {scale:g}, burial_fraction {burial:g} or reflectivity "
             f"{reflectivity:g} of '{spec.label}' is out of range (scale > 0, burial in [0, 1))"
         )
-    v, f = _object_mesh(spec, params, Path(config.source).parent)
+    v, f = object_mesh_of(spec, params, Path(config.source).parent)
     rot = _rotation(math.radians(yaw), math.radians(pitch), math.radians(roll))
     v = (v @ rot.T) * scale
     height = float(np.ptp(v[:, 2]))

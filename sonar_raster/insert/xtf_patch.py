@@ -1,0 +1,185 @@
+"""Write a recording back as XTF with some pings' side-scan samples replaced, all else kept.
+
+The output is a byte copy of the input file in which only the sample values of the changed
+pings' port and starboard channels differ: file header, navigation, attitude, times, ping
+numbers, other channels and other packet types stay as recorded, so a survey viewer shows it
+as the original line. New values are encoded in each channel's own sample format with the
+packet's own ``Weight`` (``value · 2**Weight``, rounded and clipped to the format's range:
+a return beyond full scale saturates as it would have in the recorder).
+
+Packets are walked as :class:`sonar_raster.io.xtf.XtfReader` walks them (a side-scan ping
+counts when it has a port or starboard channel), and the result is read back with
+:func:`sonar_raster.io.xtf.read_xtf` and compared with what was meant before it is kept.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SonarRasterError
+from ..io.xtf import XTF_MAGIC, XtfReader, read_xtf
+
+__all__ = ["encode_samples", "patch_xtf"]
+
+_FORMAT_DTYPES = {2: np.uint32, 3: np.uint16, 5: np.float32, 8: np.uint8}
+_SIZE_DTYPES = {1: np.uint8, 2: np.uint16, 4: np.uint32}
+
+
+def encode_samples(values: np.ndarray, dtype: np.dtype, weight: int) -> tuple[np.ndarray, int]:
+    """Samples of ``dtype`` holding ``values`` at ``2**-weight`` per count; and how many clipped.
+
+    Parameters
+    ----------
+    values : ndarray
+        Sample values as the reader returns them (after ``2**-Weight``), >= 0.
+    dtype : numpy dtype
+        The channel's sample type.
+    weight : int
+        The channel's ``Weight``.
+
+    Returns
+    -------
+    samples : ndarray of ``dtype``
+    clipped : int
+        Values beyond the format's full scale (set to it).
+    """
+    dtype = np.dtype(dtype)
+    scaled = np.asarray(values, dtype=np.float64) * 2.0**weight
+    if dtype.kind == "f":
+        return scaled.astype(dtype), 0
+    top = float(np.iinfo(dtype).max)
+    codes = np.rint(scaled)
+    clipped = int(np.count_nonzero(codes > top))
+    return np.clip(codes, 0, top).astype(dtype), clipped
+
+
+def _header_bytes(reader: XtfReader) -> int:
+    n = reader.header.channel_count()
+    return 1024 * (1 + (n - 1) // 6) if n > 6 else 1024
+
+
+def _sample_dtype(info: object) -> np.dtype:
+    size = int(info.BytesPerSample)  # type: ignore[attr-defined]
+    kind = _FORMAT_DTYPES.get(int(info.SampleFormat)) or _SIZE_DTYPES.get(size)  # type: ignore[attr-defined]
+    if kind is None:
+        raise SonarRasterError(f"XTF sample format {info.SampleFormat} cannot be rewritten")  # type: ignore[attr-defined]
+    return np.dtype(kind)
+
+
+def _patch_packet(
+    buf: bytearray, start: int, reader: XtfReader, new: dict[str, np.ndarray], stored: dict
+) -> tuple[bool, int]:
+    """Replace the side channels' samples of the packet at ``start``; (is a ping, clipped).
+
+    ``stored`` receives each side's values as the file now holds them (encoded, decoded).
+    """
+    import pyxtf
+
+    head = ctypes.sizeof(pyxtf.XTFPingHeader)
+    chan_size = ctypes.sizeof(pyxtf.XTFPingChanHeader)
+    ping = pyxtf.XTFPingHeader.from_buffer_copy(buf, start)
+    info = reader.header.sonar_info
+    sides = {k: s for s, k in reader.channels.items()}
+    pos, seen, clipped = start + head, False, 0
+    for k in range(min(int(ping.NumChansToFollow), len(info))):
+        chan = pyxtf.XTFPingChanHeader.from_buffer_copy(buf, pos)
+        pos += chan_size
+        count = int(chan.NumSamples) or int(info[k].Reserved)
+        dtype = _sample_dtype(info[k])
+        nbytes = count * int(info[k].BytesPerSample)
+        side = sides.get(int(chan.ChannelNumber))
+        if side is not None:
+            seen = True
+            if side in new:
+                values = new[side][::-1] if side == "port" else new[side]
+                if len(values) * dtype.itemsize != nbytes:
+                    raise SonarRasterError("a patched ping's sample count differs from the file's")
+                samples, n = encode_samples(values, dtype, int(chan.Weight))
+                buf[pos : pos + nbytes] = samples.tobytes()
+                clipped += n
+                decoded = samples.astype(np.float32) * np.float32(2.0 ** -int(chan.Weight))
+                stored[side] = decoded[::-1] if side == "port" else decoded
+        pos += nbytes
+    return seen, clipped
+
+
+def patch_xtf(
+    src: str | Path,
+    dst: str | Path,
+    samples: dict[int, dict[str, np.ndarray]],
+) -> int:
+    """Copy ``src`` to ``dst`` with the samples of some pings replaced.
+
+    Parameters
+    ----------
+    src : str or Path
+        The recording.
+    dst : str or Path
+        The new file (e.g. a temporary name of :func:`sonar_raster.io.commit.commit`).
+    samples : dict of int to dict of str to ndarray
+        Ping index among the file's side-scan pings (``image.metadata["ping_indices"]``) to
+        the new values per side, from range 0 outward, as :func:`read_xtf` returns them.
+
+    Returns
+    -------
+    int
+        Samples clipped at the format's full scale.
+
+    Raises
+    ------
+    SonarRasterError
+        When the copy, read back, does not hold the new samples (a file this walk does not
+        understand); ``dst`` is then left for the caller to remove.
+    """
+    with XtfReader(src) as reader:
+        data = bytearray(Path(src).read_bytes())
+        pos, index, clipped = _header_bytes(reader), 0, 0
+        stored: dict[int, dict[str, np.ndarray]] = {}
+        start_size = 14
+        while pos + start_size <= len(data):
+            magic = int.from_bytes(data[pos : pos + 2], "little")
+            size = int.from_bytes(data[pos + 10 : pos + 14], "little")
+            if magic != XTF_MAGIC or size < start_size or pos + size > len(data):
+                break
+            if data[pos + 2] == 0:  # a sonar packet
+                new = samples.get(index, {})
+                is_ping, n = _patch_packet(data, pos, reader, new, stored.setdefault(index, {}))
+                clipped += n
+                index += int(is_ping)
+            pos += size
+    with open(dst, "wb") as fh:
+        fh.write(data)
+    _verify(Path(src), Path(dst), samples, stored)
+    return clipped
+
+
+def _verify(src: Path, dst: Path, samples: dict, stored: dict) -> None:
+    """Read ``dst`` back: each patched ping must hold exactly the values encoded into it."""
+    image, _ = read_xtf(dst)
+    rows = {int(k): r for r, k in enumerate(image.metadata["ping_indices"])}
+    for index, sides in samples.items():
+        for side in sides:
+            want = stored.get(index, {}).get(side)
+            if (
+                index not in rows
+                or want is None
+                or not np.array_equal(image.sides[side][rows[index]], want)
+            ):
+                raise SonarRasterError(
+                    f"{src}: rewriting ping {index} ({side}) did not round-trip; the file's "
+                    "layout is not one this writer understands"
+                )
+
+
+def copy_unchanged(src: str | Path, dst: str | Path) -> None:
+    """Copy ``src`` to ``dst`` byte for byte (no ping changed).
+
+    Parameters
+    ----------
+    src, dst : str or Path
+    """
+    shutil.copyfile(src, dst)
