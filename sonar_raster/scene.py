@@ -35,6 +35,9 @@ class MeshPart:
         Object name (used for labels).
     is_seabed : bool
         True for the seabed surface (its mean level sets the nominal altitude).
+    law : int
+        Scattering law of the faces: 0 is Lambert, i > 0 the APL-UW law of material
+        ``scenes.sediments.MATERIALS[i - 1]``.
     """
 
     vertices: np.ndarray
@@ -42,6 +45,7 @@ class MeshPart:
     reflectivity: float | np.ndarray = 0.5
     name: str = "object"
     is_seabed: bool = False
+    law: int = 0
 
 
 @dataclass(frozen=True)
@@ -64,6 +68,8 @@ class Scene:
         Nominal seabed level in metres (mean z of the seabed parts, else the scene's lowest z).
     bounds : ndarray, shape (2, 3), float64
         Min and max corner of the used vertices (computed when not given).
+    law : ndarray, shape (m,), uint8, or None
+        Scattering law of each face (see :attr:`MeshPart.law`); None: Lambert everywhere.
     """
 
     vertices: np.ndarray
@@ -73,6 +79,7 @@ class Scene:
     names: tuple[str, ...] = field(default_factory=tuple)
     ground_z: float = 0.0
     bounds: Any = field(default=None, repr=False)
+    law: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         if self.bounds is None:
@@ -105,6 +112,7 @@ class Scene:
             self.names,
             self.ground_z + float(offset[2]),
             self.bounds + offset,
+            self.law,
         )
 
 
@@ -165,7 +173,7 @@ def build_scene(parts: list[MeshPart]) -> Scene:
         If there are no triangles, a vertex is NaN or infinite, an index is out of range, or a
         reflectivity is negative or not finite.
     """
-    verts, faces, refl, ids, names, ground = [], [], [], [], [], []
+    verts, faces, refl, ids, names, ground, laws = [], [], [], [], [], [], []
     offset = 0
     dropped = 0
     n_vertices = sum(len(np.asarray(p.vertices).reshape(-1, 3)) for p in parts)
@@ -198,6 +206,7 @@ def build_scene(parts: list[MeshPart]) -> Scene:
         faces.append(f + index_type(offset) if offset else f)
         refl.append(r)
         ids.append(np.full(len(f), k, dtype=np.int32))
+        laws.append(np.full(len(f), part.law, dtype=np.uint8))
         names.append(part.name)
         if part.is_seabed and len(f):
             used = np.zeros(len(v), dtype=bool)
@@ -220,4 +229,5 @@ def build_scene(parts: list[MeshPart]) -> Scene:
         names=tuple(names),
         ground_z=ground_z,
         bounds=bounds,
+        law=_joined(laws) if any(p.law for p in parts) else None,
     )

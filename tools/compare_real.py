@@ -180,7 +180,7 @@ def simulate(real: RealPass, altitudes: np.ndarray, args: argparse.Namespace, be
     from sonar_raster.effects.presets import preset
     from sonar_raster.rendering.gl.raster import render_raster
     from sonar_raster.scene import MeshPart
-    from sonar_raster.scenes.sediments import material_reflectivity
+    from sonar_raster.scenes.sediments import material_index, material_reflectivity
     from sonar_raster.sonar import BeamPattern
 
     p = preset(args.sensor)
@@ -190,8 +190,9 @@ def simulate(real: RealPass, altitudes: np.ndarray, args: argparse.Namespace, be
     v = np.array(
         [[-half, -5.0, 0.0], [half, -5.0, 0.0], [half, length + 5, 0.0], [-half, length + 5, 0.0]]
     )
+    law = material_index("sand") if args.law == "apl" else 0
     seabed = MeshPart(
-        v, np.array([[0, 1, 2], [0, 2, 3]]), material_reflectivity("sand"), "seabed", is_seabed=True
+        v, np.array([[0, 1, 2], [0, 2, 3]]), material_reflectivity("sand"), "seabed", True, law
     )
     sonar = p.sonar(real.max_range, real.range_bin)
     if beam is not None:
@@ -207,9 +208,12 @@ def simulate(real: RealPass, altitudes: np.ndarray, args: argparse.Namespace, be
         ("along_beam_deg", args.along_beam_deg),
         ("range_resolution_m", args.range_resolution),
         ("noise_db", args.noise_db),
+        ("speckle_looks", args.speckle_looks),
     ):
         if value is not None:
             fx = replace(fx, **{name: value})
+    if args.k_shape is not None:  # K-distributed: a patchy seabed's texture under the speckle
+        fx = replace(fx, speckle="k", k_shape=args.k_shape)
     return raw, apply_effects(raw, fx, seed=args.seed, trajectory=traj)
 
 
@@ -382,6 +386,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--along-beam-deg", type=float, default=None, help="default: the preset's")
     ap.add_argument("--range-resolution", type=float, default=None, metavar="M")
     ap.add_argument("--noise-db", type=float, default=None, help="default: the preset's")
+    ap.add_argument(
+        "--speckle-looks", type=float, default=None, help="looks per sample (default: preset's)"
+    )
+    ap.add_argument("--k-shape", type=float, default=None, help="K texture shape ν (default: none)")
+    ap.add_argument(
+        "--law",
+        choices=("apl", "lambert"),
+        default="apl",
+        help="seabed scattering law: the APL-UW sand law (default) or Lambert",
+    )
     ap.add_argument(
         "--fit-beam", action="store_true", help="fit the vertical beam to the real mean profile"
     )

@@ -24,6 +24,7 @@ _FIELDS = {
     "volume_db": "water_column_sv",
     "speckle": "speckle",
     "k_shape": "k_shape",
+    "speckle_looks": "speckle_looks",
     "range_resolution_m": "range_resolution",
     "spreading": "spreading",
     "absorption": "absorption",
@@ -70,6 +71,12 @@ def add_effect_options(parser: argparse.ArgumentParser) -> None:
     add("--water-column-db", type=_number, metavar="DB", help="water-column level, dB re 1 m²")
     add("--speckle", choices=("off", "exponential", "k"), help="multiplicative speckle")
     add("--k-shape", type=_number, metavar="NU", help="K-distribution shape (with --speckle k)")
+    add(
+        "--speckle-looks",
+        type=_number,
+        metavar="L",
+        help="looks per sample (>= 1): speckle of L averaged looks, contrast 1/sqrt(L)",
+    )
     add("--range-resolution", type=_number, metavar="M", help="speckle range cell (default 1 bin)")
     add("--spreading", action="store_true", default=None, help="two-way spreading, 1/r^4")
     add("--absorption", action="store_true", default=None, help="Francois-Garrison absorption")
@@ -100,29 +107,52 @@ def _ideal(args: argparse.Namespace) -> bool:
 
 
 def apply_sensor_option(args: argparse.Namespace, setup: Any) -> Any:
-    """The scene setup with ``--sensor NAME``'s sonar (``--range``/``--range-bin`` kept).
+    """The scene setup with ``--sensor NAME``'s sonar; explicit sonar options win over it.
+
+    ``--range``/``--range-bin`` choose the preset's range sampling; ``--frequency``, ``--tilt``,
+    ``--beamwidth`` (a Gaussian two-way beam of that width) and ``--sound-speed``, where given,
+    replace the preset's values (they were already applied to the scene's own sonar, which the
+    preset replaces).
 
     Parameters
     ----------
     args : argparse.Namespace
-        Parsed ``render`` options (``sensor``, ``max_range``, ``range_bin``).
+        Parsed ``render`` options (``sensor``, ``max_range``, ``range_bin``, ``frequency``
+        (kHz), ``tilt`` (degrees), ``beamwidth`` (degrees), ``sound_speed`` (m/s)).
     setup : SceneSetup
         The loaded scene; its sides are kept.
 
     Returns
     -------
     SceneSetup
-        ``setup`` itself without ``--sensor``; else a copy whose sonar is the preset's.
+        ``setup`` itself without ``--sensor``; else a copy whose sonar is the preset's with the
+        explicit options applied (``notes["sensor_sonar_overrides"]`` lists them).
     """
     name = getattr(args, "sensor", None)
     if name is None or _ideal(args):
         return setup
+    import math
     from dataclasses import replace
 
     from ..effects.presets import preset
+    from ..sonar import BeamPattern
 
     sonar = preset(name).sonar(args.max_range, args.range_bin, setup.sonar.sides)
-    return replace(setup, sonar=sonar, notes={**setup.notes, "sensor_sonar": name})
+    changes: dict[str, Any] = {}
+    if getattr(args, "frequency", None) is not None:
+        changes["frequency_hz"] = 1e3 * float(args.frequency)
+    if getattr(args, "tilt", None) is not None:
+        changes["tilt"] = math.radians(float(args.tilt))
+    if getattr(args, "beamwidth", None) is not None:
+        changes["beam"] = BeamPattern.gaussian(float(args.beamwidth))
+    if getattr(args, "sound_speed", None) is not None:
+        changes["sound_speed"] = float(args.sound_speed)
+    notes = {**setup.notes, "sensor_sonar": name}
+    if changes:
+        sonar = replace(sonar, **changes)
+        options = {"frequency_hz": "--frequency", "tilt": "--tilt", "beam": "--beamwidth"}
+        notes["sensor_sonar_overrides"] = [options.get(k, "--sound-speed") for k in changes]
+    return replace(setup, sonar=sonar, notes=notes)
 
 
 def add_display_options(parser: argparse.ArgumentParser) -> None:

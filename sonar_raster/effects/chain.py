@@ -98,6 +98,7 @@ _NUMBER_OR_NONE = (
 #: Fields that are always a finite number (k_shape > 0).
 _NUMBERS = (
     "k_shape",
+    "speckle_looks",
     "temperature_c",
     "salinity_psu",
     "depth_m",
@@ -138,6 +139,10 @@ class Effects:
         Speckle statistics.
     k_shape : float
         Shape ν > 0 of the K-distribution (small: patchy; large: nearly exponential).
+    speckle_looks : float
+        Looks L ≥ 1 per sample: the speckle intensity has the one-point law of L-look speckle
+        (gamma of shape L, contrast 1/√L), as when a recorder averages L independent samples
+        into one; 1 is fully developed single-look speckle.
     range_resolution_m : float, optional
         Range resolution cell for speckle correlation, metres; default: one range bin.
     spreading : bool
@@ -182,6 +187,7 @@ class Effects:
     volume_db: float | None = None
     speckle: str = "off"
     k_shape: float = 1.0
+    speckle_looks: float = 1.0
     range_resolution_m: float | None = None
     spreading: bool = False
     absorption: bool = False
@@ -236,6 +242,10 @@ class Effects:
                 raise SonarRasterError(f"effects: {name} must be a number, got {value!r}")
             check = positive if name in _POSITIVE_OR_NONE or name == "k_shape" else number
             check(f"effects: {name}", value)
+        if self.speckle_looks < 1.0:
+            raise SonarRasterError(
+                f"effects: speckle_looks must be >= 1 (looks per sample), got {self.speckle_looks}"
+            )
         if self.absorption_db_m is not None:
             non_negative("effects: absorption_db_m (dB/m)", self.absorption_db_m)
 
@@ -478,7 +488,8 @@ def _speckle(data: np.ndarray, fx: Effects, ctx: _Context) -> np.ndarray:
     cell = fx.range_resolution_m
     sigma_range = 0.0 if cell is None else cell / (FWHM_PER_SIGMA * ctx.range_bin)
     nu = fx.k_shape if fx.speckle == "k" else None
-    return data * speckle_field(data.shape, ctx.rng, ctx.sigma_along, sigma_range, nu)
+    field = speckle_field(data.shape, ctx.rng, ctx.sigma_along, sigma_range, nu, fx.speckle_looks)
+    return data * field
 
 
 def _spreading(data: np.ndarray, fx: Effects, ctx: _Context) -> np.ndarray:

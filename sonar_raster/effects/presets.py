@@ -96,6 +96,10 @@ class SensorPreset:
     volume_db : float
         Volume backscattering strength Sv of the water column, dB re 1 m⁻¹ (an environment
         figure, not the sensor's: -75 dB, mid coastal water at a few hundred kHz).
+    speckle_looks : float
+        Looks per recorded sample (see :class:`~sonar_raster.Effects`); 1 for every preset
+        (no datasheet gives it; the real file suggests about 2.5 together with a patchy-seabed
+        texture, docs/notes/2026-11-24-backscatter.md, not adopted as a default).
     assumed : tuple of str
         Names of the fields above whose value is not published in ``sources`` (chosen).
     sources : tuple of str
@@ -126,6 +130,7 @@ class SensorPreset:
     far_snr_db: float = 10.0
     headroom_db: float = 12.0
     volume_db: float = -75.0
+    speckle_looks: float = 1.0
     assumed: tuple[str, ...]
     sources: tuple[str, ...]
     notes: str
@@ -260,6 +265,7 @@ class SensorPreset:
             volume_db=self.volume_db,
             noise_db=round(self.noise_db, 2),
             speckle="exponential",
+            speckle_looks=self.speckle_looks,
             range_resolution_m=self.range_resolution_m,
             spreading=True,
             absorption=True,

@@ -57,6 +57,7 @@ def speckle_field(
     sigma_along: np.ndarray,
     sigma_range: float,
     k_shape: float | None = None,
+    looks: float = 1.0,
 ) -> np.ndarray:
     """Unit-mean multiplicative speckle for one side image.
 
@@ -72,6 +73,9 @@ def speckle_field(
         Same across range, bins (0: every bin independent).
     k_shape : float, optional
         Shape ν > 0 of the K-distribution; None gives exponential (fully developed) speckle.
+    looks : float
+        Looks L ≥ 1: the exponential speckle is mapped through the gamma(L) quantile function
+        (one-point law of L-look speckle, mean 1, contrast 1/√L; correlation kept in rank).
 
     Returns
     -------
@@ -85,6 +89,9 @@ def speckle_field(
     re, gain = _correlated(white[0], amp_along, amp_range)
     im, _ = _correlated(white[1], amp_along, amp_range)
     speckle = (re * re + im * im) / (2.0 * gain)
+    if looks != 1.0:  # exponential -> uniform -> gamma(L) / L, pixel by pixel
+        u = np.clip(-np.expm1(-speckle), 1e-15, 1.0 - 1e-15)
+        speckle = special.gammaincinv(looks, u) / looks
     if k_shape is None:
         return speckle
     g, g_gain = _correlated(rng.standard_normal((pings, bins)), amp_along, amp_range)

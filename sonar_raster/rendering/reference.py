@@ -19,6 +19,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -145,9 +146,10 @@ def render_reference(
     caster = ray_caster(scene.vertices - local, scene.faces)
     acc = {side: np.zeros((trajectory.n_pings, sonar.n_bins)) for side in sonar.sides}
     stats = _Stats()
+    law = _law(scene, sonar)
     with progress_bar(estimate.work, "reference", progress) as bar:
         for frame, count in zip(frames, work, strict=True):
-            _render_segment(surface, caster, sonar, frame, acc, stats)
+            _render_segment(surface, caster, sonar, frame, acc, stats, law)
             bar.update(count)
     elapsed = time.perf_counter() - start
     log.info(
@@ -206,6 +208,24 @@ def _bounds(sonar: Sonar, frame: Frame) -> np.ndarray:
     return np.array([[t_lo - margin, t_hi + margin], [x_lo, x_hi], [-reach, reach]])
 
 
+def _law(scene: Scene, sonar: Sonar) -> Callable[[np.ndarray, np.ndarray], np.ndarray] | None:
+    """Per-patch factor of the scene's scattering laws over Lambert (None: Lambert only).
+
+    The factor is ``f(θ) / cos θ`` of each face's law at the sonar's frequency, interpolated
+    in incidence angle exactly as the raster's fragment shader does (same table).
+    """
+    if scene.law is None or not scene.law.any():
+        return None
+    from ..scenes.sediments import law_factor
+
+    laws = scene.law.astype(np.int64)
+
+    def factor(face: np.ndarray, cos_t: np.ndarray) -> np.ndarray:
+        return law_factor(laws[face], cos_t, sonar.frequency_hz, sonar.sound_speed)
+
+    return factor
+
+
 def _render_segment(
     surface: Surface,
     caster,
@@ -213,6 +233,7 @@ def _render_segment(
     frame: Frame,
     acc: dict[str, np.ndarray],
     stats: _Stats,
+    law: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
 ) -> None:
     """Add one segment's patches to ``acc`` (side -> (pings, bins) float64)."""
     bounds = _bounds(sonar, frame)
@@ -225,7 +246,7 @@ def _render_segment(
         proj, surface.n_sub, ids, bounds, row_block=_ROW_CHUNK, chunk=_PATCH_CHUNK
     ):
         patches = _make_patches(runs, ids, proj, normal, surface.n_sub)
-        _accumulate(surface, caster, sonar, frame, patches, acc, stats)
+        _accumulate(surface, caster, sonar, frame, patches, acc, stats, law)
 
 
 def _make_patches(
@@ -253,6 +274,7 @@ def _accumulate(
     patches: _Patches,
     acc: dict[str, np.ndarray],
     stats: _Stats,
+    law: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
 ) -> None:
     """Test one chunk of patches and add the visible ones to ``acc``.
 
@@ -281,6 +303,8 @@ def _accumulate(
     keep = sel[vis]
     face = patches.face[keep]
     weight = surface.patch_weight[face] * cos_num[keep] / r[keep]
+    if law is not None:  # the face's angular law in place of Lambert's cos θ
+        weight = weight * law(face, cos_num[keep] / r[keep])
     depression = np.arctan2(-v[keep], np.abs(x[keep]))
     c = corners[keep]
     bins, in_bin = _spread(np.hypot(c[..., 1], c[..., 2]), sonar.range_bin, 0.0)

@@ -447,17 +447,23 @@ def _sensor_preset(data: dict, where: str) -> dict:
 
 
 # -- sensor effects and materials --------------------------------------------------------------
-def _reflectivity(table: dict, default: Any, where: str) -> Any:
-    """'reflectivity' (a number) or 'material' (a sediment name, see sediments.py)."""
+def _reflectivity(table: dict, default: Any, where: str) -> tuple[Any, int]:
+    """'reflectivity' or 'material' (see sediments.py), and the law ('scattering' = apl|lambert)."""
     material = _take(table, "material", None, str, where)
     value = _take(table, "reflectivity", None, (int, float), where)
+    law = _take(table, "scattering", None, str, where)
     if material is None:
-        return default if value is None else value
+        if law not in (None, "lambert"):
+            raise SonarRasterError(f"{where}: scattering = {law!r} needs a 'material'")
+        return (default if value is None else value), 0
     if value is not None:
         raise SonarRasterError(f"{where}: give 'reflectivity' or 'material', not both")
-    from .sediments import material_reflectivity
+    from .sediments import LAWS, material_index, material_reflectivity
 
-    return material_reflectivity(material)
+    if law not in (None, *LAWS):
+        raise SonarRasterError(f"{where}: scattering must be one of {', '.join(LAWS)}")
+    index = 0 if law == "lambert" else material_index(material)
+    return material_reflectivity(material), index
 
 
 def _effects(table: dict, base: Path, where: str) -> Any:
@@ -482,7 +488,7 @@ def _seabed(
     kind = table.pop("kind", "flat")
     map_file = table.pop("reflectivity_map", None)
     default = DEFAULT_SEABED_REFLECTIVITY if map_file is None else 1.0
-    reflectivity = _reflectivity(table, default, f"{where} [seabed]")
+    reflectivity, law = _reflectivity(table, default, f"{where} [seabed]")
     lod = table.pop("lod", True)
     if isinstance(lod, bool):
         lod_bins = DEFAULT_LOD_BINS if lod else 0.0
@@ -502,8 +508,8 @@ def _seabed(
             log.info("seabed level of detail: %s", report)
     if map_file is not None:
         node_map = float(reflectivity) * reflectivity_map(base / str(map_file), field)
-        return field, field.mesh(reflectivity=node_map, name="seabed")
-    return field, field.mesh(reflectivity=float(reflectivity), name="seabed")
+        return field, replace(field.mesh(reflectivity=node_map, name="seabed"), law=law)
+    return field, replace(field.mesh(reflectivity=float(reflectivity), name="seabed"), law=law)
 
 
 def _rotation(angles_deg: np.ndarray) -> np.ndarray:
@@ -569,7 +575,7 @@ def _object(spec: dict, base: Path, seabed: Heightfield | None, k: int) -> list[
     rotation = rotation @ _rotation(np.array(UP_AXES[up]))
     scale = float(_take(spec, "scale", 1.0, number, where))
     sink = float(_take(spec, "sink", 0.0, number, where))
-    reflectivity = _reflectivity(spec, None, where)
+    reflectivity, law = _reflectivity(spec, None, where)
     name = _take(spec, "name", None, str, where)
     _no_leftovers(spec, where)
     if not (math.isfinite(scale) and scale > 0):
@@ -591,6 +597,7 @@ def _object(spec: dict, base: Path, seabed: Heightfield | None, k: int) -> list[
                 part.faces,
                 part.reflectivity if reflectivity is None else float(reflectivity),
                 label or f"object{k}_{j}",
+                law=law,
             )
         )
     return out

@@ -312,6 +312,24 @@ def test_k_distributed_speckle(nu):
     assert stats.kstest(values, lambda x: k_cdf(x, nu)).statistic < 0.005
 
 
+@pytest.mark.parametrize("looks", [2.0, 2.5])
+def test_multi_look_speckle(looks):
+    """speckle_looks L: gamma(L) one-point law (contrast 1/sqrt(L)); with K texture ν the
+    contrast² is (1 + 1/L)(1 + 1/ν) - 1."""
+    image = image_of(np.ones((1024, 1024)))
+    out = apply_effects(image, Effects(speckle="exponential", speckle_looks=looks), seed=3)
+    values = out.sides["port"].astype(np.float64).ravel()
+    assert values.mean() == pytest.approx(1.0, abs=0.02)
+    assert values.std() / values.mean() == pytest.approx(1 / math.sqrt(looks), rel=0.03)
+    assert stats.kstest(values, stats.gamma(looks, scale=1 / looks).cdf).statistic < 0.005
+    fx = Effects(speckle="k", k_shape=2.0, speckle_looks=looks)
+    k = apply_effects(image, fx, seed=3).sides["port"].astype(np.float64).ravel()
+    want = (1 + 1 / looks) * (1 + 1 / 2.0) - 1
+    assert k.var() / k.mean() ** 2 == pytest.approx(want, rel=0.05)
+    with pytest.raises(SonarRasterError, match="speckle_looks must be >= 1"):
+        Effects(speckle="exponential", speckle_looks=0.5)
+
+
 def lag_correlation(field: np.ndarray, lags: range, axis: int) -> np.ndarray:
     x = field - field.mean()
     n = field.shape[axis]
@@ -476,6 +494,20 @@ def test_scene_materials_and_effects_table(tmp_path):
     box = scene.reflectivity[scene.object_id != scene.names.index("seabed")]
     np.testing.assert_allclose(seabed, sediment("mud").reflectivity)
     np.testing.assert_allclose(box, sediment("rock").reflectivity)
+    # a material brings its APL-UW law (index into MATERIALS, 0 = Lambert) ...
+    from sonar_raster.scenes.sediments import material_index
+
+    is_bed = scene.object_id == scene.names.index("seabed")
+    assert np.all(scene.law[is_bed] == material_index("mud"))
+    assert np.all(scene.law[~is_bed] == material_index("rock"))
+    # ... unless scattering = "lambert" asks for Lambert; a plain reflectivity is Lambert
+    lam = tmp_path / "lam.toml"
+    lam.write_text(SCENE.format(material="mud").replace('"mud"', '"mud"\nscattering = "lambert"'))
+    scene2 = load_scene_file(lam).scene
+    assert np.all(scene2.law[scene2.object_id == scene2.names.index("seabed")] == 0)
+    with pytest.raises(SonarRasterError, match="scattering must be one of lambert, apl"):
+        lam.write_text(SCENE.format(material="mud").replace('"mud"', '"mud"\nscattering = "x"'))
+        load_scene_file(lam)
     fx = setup.effects
     assert fx.stages == ("along_track", "speckle", "tvg")
     assert fx.k_shape == 2.0 and fx.tvg_curve == ((0.0, 0.0), (20.0, 40.0))

@@ -230,3 +230,36 @@ def test_quantisation_keeps_positive_values_off_code_zero():
     out = apply_effects(SonarImage({"port": data}, Sonar()), Effects(bits=8)).sides["port"]
     codes = np.round(out[0].astype(np.float64) * 255).astype(int)
     assert codes.tolist() == [0, 1, 1, 1, 255]
+
+
+def test_explicit_sonar_options_win_over_the_sensor_preset(tmp_path):
+    """--frequency, --tilt, --beamwidth and --sound-speed given with --sensor are kept."""
+    name = "klein-3900-900"
+    p = PRESETS[name]
+    base = ["render", "default", "--pings", "4", "-q", "--sensor", name]
+    exr = tmp_path / "o.exr"
+    extra = ["--frequency", "123", "--tilt", "33", "--beamwidth", "21", "--sound-speed", "1480"]
+    assert main([*base, *extra, "-o", str(exr)]) == 0
+    doc = _sidecar(exr)
+    assert doc["sonar"]["frequency_hz"] == pytest.approx(123e3)
+    assert doc["sonar"]["tilt_deg"] == pytest.approx(33.0)
+    assert doc["sonar"]["sound_speed_m_s"] == pytest.approx(1480.0)
+    assert doc["metadata"]["sensor_sonar_overrides"] == [
+        "--frequency",
+        "--tilt",
+        "--beamwidth",
+        "--sound-speed",
+    ]
+    # the preset's other settings stay (its range sampling and its effects)
+    assert doc["sonar"]["max_range_m"] == p.max_ranges_m[0]
+    assert doc["metadata"]["effects"]["settings"]["along_beam_deg"] == p.horizontal_beamwidth_deg
+    # the beam is the asked one: a Gaussian two-way beam of 5° full width at half power
+    from sonar_raster.cli.app import _parser as build_parser
+    from sonar_raster.cli.effects_options import apply_sensor_option
+    from sonar_raster.cli.render import load_setup
+
+    args = build_parser().parse_args([*base, "--beamwidth", "5", "--tilt", "33", "-o", "x.exr"])
+    setup = apply_sensor_option(args, load_setup(args))
+    beam = setup.sonar.beam
+    assert float(beam(np.radians([2.5]))[0]) == pytest.approx(0.5, abs=0.01)  # half power at 2.5°
+    assert setup.sonar.tilt == pytest.approx(math.radians(33.0))

@@ -2,8 +2,10 @@
 // Pass 1: rasterise the scene for one straight track segment and one side into
 // (ping row x look-angle column) samples. Each fragment is one ray of the fan:
 // it writes the exact slant range of its hit and the weight Phi * R * f(cos t)/cos t * r * dalpha * dy.
-// Defines: SCATTERING (1 = Lambert); LABELS (1: also write the face's label, object id + 1, to
-// a second target for the label pass; 0: no label work at all).
+// Defines: SCATTERING (1 = Lambert for every face; 2 = per-face law: row `law` of the `laws`
+// table, f(t)/cos t sampled uniformly in incidence angle t from 0 to pi/2, row 0 = Lambert);
+// LABELS (1: also write the face's label, object id + 1, to a second target for the label
+// pass; 0: no label work at all).
 
 #ifndef SCATTERING
 #error "SCATTERING must be defined"
@@ -71,9 +73,10 @@ in vec3 v_q[];
 in float v_alpha[];
 uniform float alpha_span_max;   // more angle than this (pi) means the triangle wraps over the top
 uniform float frame_sign;       // det of the (along, side, up) frame: fixes the normal's sign
-layout(std430, binding = 0) readonly buffer FaceData { float face_refl[]; };
+layout(std430, binding = 0) readonly buffer FaceData { vec2 face_data[]; };  // (R, law)
 flat out vec4 g_plane;          // unit normal (xyz, segment frame) and offset n.q
 flat out float g_refl;
+flat out int g_law;
 out vec3 g_q;
 #if LABELS
 layout(std430, binding = 2) readonly buffer FaceLabels { uint face_label[]; };
@@ -88,11 +91,12 @@ void main() {
     float len = length(n);
     if (len <= 0.0) return;
     n /= len;
-    float refl = face_refl[gl_PrimitiveIDIn];
+    vec2 face = face_data[gl_PrimitiveIDIn];
     for (int i = 0; i < 3; ++i) {
         gl_Position = gl_in[i].gl_Position;
         g_plane = vec4(n, dot(n, v_q[0]));
-        g_refl = refl;
+        g_refl = face.x;
+        g_law = int(face.y + 0.5);
         g_q = v_q[i];
 #if LABELS
         g_label = face_label[gl_PrimitiveIDIn];
@@ -106,8 +110,12 @@ void main() {
 #if defined FRAGMENT_SHADER
 flat in vec4 g_plane;
 flat in float g_refl;
+flat in int g_law;
 in vec3 g_q;
-uniform sampler2D columns;      // per column: (alpha, Phi(alpha - axis) * dalpha, dalpha / 2)
+uniform sampler2D columns;
+#if SCATTERING == 2
+uniform sampler2D laws;         // (incidence samples x laws) of f(t) / cos t, R32F
+#endif      // per column: (alpha, Phi(alpha - axis) * dalpha, dalpha / 2)
 uniform float spacing;          // metres between pings (0 for a stationary sonar)
 uniform float rows_per_ping;
 uniform float row_width;        // travel of one row, metres
@@ -126,6 +134,15 @@ layout(location = 1) out uint out_label;
 float scattering_over_cos(float cos_t) {
 #if SCATTERING == 1
     return 1.0;                 // Lambert: cos(theta) * area / cos(theta)
+#elif SCATTERING == 2
+    // Linear in incidence angle between the two nearest samples (the reference renderer's
+    // sediments.law_factor does the same on the CPU).
+    int n = textureSize(laws, 0).x;
+    float x = acos(clamp(cos_t, 0.0, 1.0)) / 1.5707963267948966 * float(n - 1);
+    int j = clamp(int(floor(x)), 0, n - 2);
+    float a = texelFetch(laws, ivec2(j, g_law), 0).r;
+    float b = texelFetch(laws, ivec2(j + 1, g_law), 0).r;
+    return mix(a, b, x - float(j));
 #else
 #error "unknown SCATTERING"
 #endif

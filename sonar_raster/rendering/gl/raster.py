@@ -169,10 +169,11 @@ class RasterRenderer:
 
     # -- programs ---------------------------------------------------------------------------
     def _program(self, kind: str, labels: bool = False) -> Any:
-        key = f"{kind}:{self.settings.split}:{int(labels)}"
+        scattering = self._geometry.get("scattering", 1) if kind == "samples" else 1
+        key = f"{kind}:{self.settings.split}:{scattering}:{int(labels)}"
         if key not in self._programs:
             if kind == "samples":
-                d = {"SCATTERING": 1, "LABELS": int(labels)}
+                d = {"SCATTERING": scattering, "LABELS": int(labels)}
                 self._programs[key] = self.ctx.program(
                     vertex_shader=specialise("ping_samples.glsl", "VERTEX_SHADER", d),
                     geometry_shader=specialise("ping_samples.glsl", "GEOMETRY_SHADER", d),
@@ -279,10 +280,17 @@ class RasterRenderer:
             source = np.concatenate([np.flatnonzero(~big), np.flatnonzero(big)[parent]])
             log.info("subdivided %d large triangles into %d", int(big.sum()), len(pieces))
         refl = scene.reflectivity if source is None else scene.reflectivity[source]
+        law = None if scene.law is None or not scene.law.any() else scene.law
+        if law is not None and source is not None:
+            law = law[source]
         self._geometry = {
             "vertices": vertices,
             "faces_cpu": faces,
             "refl_cpu": refl,
+            # Scattering law per face (SCATTERING 2: a per-material angular table), else None.
+            "law_cpu": law,
+            "scattering": 1 if law is None else 2,
+            "r_max_law": _max_by_law(refl, law),
             "source": source,
             "max_edge": max_edge,
             "vbo": self.ctx.buffer(vertices),
@@ -297,8 +305,32 @@ class RasterRenderer:
         geo = self._geometry
         if "ibo" not in geo:
             geo["ibo"] = self.ctx.buffer(geo["faces_cpu"].astype("u4"))
-            geo["faces"] = self.ctx.buffer(geo["refl_cpu"].astype("f4"))
+            geo["faces"] = self.ctx.buffer(_face_data(geo["refl_cpu"], geo["law_cpu"], None))
         return geo
+
+    def _law_texture(self, sonar: Sonar) -> None:
+        """Per-material angular law table (materials x incidence angle) for this sonar.
+
+        Also sets the geometry's ``r_max`` (largest reflectivity times law factor) that bounds
+        the fixed-point scale. A no-op besides that for Lambert-only scenes.
+        """
+        geo = self._geometry
+        if geo.get("scattering", 1) == 1:
+            geo["r_max"] = float(geo["r_max_law"][0]) if len(geo["r_max_law"]) else 0.0
+            return
+        from ...scenes.sediments import law_tables
+
+        table = law_tables(sonar.frequency_hz, sonar.sound_speed)
+        key = (sonar.frequency_hz, sonar.sound_speed)
+        if geo.get("laws_key") != key:
+            if "laws" in geo:
+                geo["laws"].release()
+            rows, cols = table.shape
+            data = np.ascontiguousarray(table, dtype="f4").tobytes()
+            geo["laws"] = self.ctx.texture((cols, rows), 1, data, dtype="f4")
+            geo["laws_key"] = key
+        used = geo["r_max_law"]
+        geo["r_max"] = float(np.max(used * table[: len(used)].max(axis=1), initial=0.0))
 
     def _face_labels(self, ids: np.ndarray | None) -> np.ndarray:
         """Labels (object id + 1; 0 means "no return") of uploaded faces ``ids`` (None: all)."""
@@ -511,6 +543,7 @@ class RasterRenderer:
     ) -> SonarImage:
         """Render pings ``pings[0] .. pings[1] - 1`` from their draws."""
         tables = [self._column_tables(d, sonar) for d in draws]
+        self._law_texture(sonar)
         scale = self._fixed_point_scale(draws, tables, sonar.max_range, sonar.range_bin)
         first_ping = pings[0]
         n_pings, n_bins = pings[1] - pings[0], sonar.n_bins
@@ -643,6 +676,9 @@ class RasterRenderer:
             if name in prog:
                 prog[name].value = value
         geometry["faces"].bind_to_storage_buffer(0)
+        if "laws" in self._geometry:
+            self._geometry["laws"].use(location=_LAW_UNIT)
+            prog["laws"].value = _LAW_UNIT
         if labels:
             self._labels_buffer(geometry, geometry.get("ids")).bind_to_storage_buffer(2)
             cells[f"{draw.side}:labels"].bind_to_storage_buffer(3)
@@ -894,9 +930,9 @@ class RasterRenderer:
         if len(ids) > 0.5 * geo["n_faces"]:
             return self._whole_scene()
         faces = geo["faces_cpu"][ids].astype("u4")
-        refl = geo["refl_cpu"][ids].astype("f4")
+        refl = _face_data(geo["refl_cpu"], geo["law_cpu"], ids)
         ibo = self.ctx.buffer(faces if len(ids) else b"\0" * 12)
-        refl = self.ctx.buffer(refl if len(ids) else b"\0" * 4)
+        refl = self.ctx.buffer(refl if len(ids) else b"\0" * 8)
         return {
             "ibo": ibo,
             "faces": refl,
@@ -1020,3 +1056,26 @@ def render_raster(
     """
     with RasterRenderer(backend, settings) as renderer:
         return renderer.render(scene, sonar, trajectory, progress=progress, labels=labels)
+
+
+#: Texture unit of the per-material law table (units 0-2 hold the pass targets and columns).
+_LAW_UNIT = 5
+
+
+def _max_by_law(refl: np.ndarray, law: np.ndarray | None) -> np.ndarray:
+    """Largest reflectivity per law index (index 0 only for a Lambert scene)."""
+    if law is None:
+        return np.array([float(refl.max(initial=0.0))])
+    out = np.zeros(int(law.max()) + 1)
+    np.maximum.at(out, law.astype(np.int64), refl)
+    return out
+
+
+def _face_data(refl: np.ndarray, law: np.ndarray | None, ids: np.ndarray | None) -> np.ndarray:
+    """The pass-1 face buffer: (reflectivity, law index) float32 pairs of faces ``ids``."""
+    r = refl if ids is None else refl[ids]
+    out = np.zeros((len(r), 2), dtype="f4")
+    out[:, 0] = r
+    if law is not None:
+        out[:, 1] = law if ids is None else law[ids]
+    return out
