@@ -19,10 +19,20 @@ from typing import Any
 from ._budget import check_memory, size_text
 from .errors import SonarRasterError
 
-__all__ = ["TIME_LIMIT_S", "Estimate", "announce", "check_job", "duration_text", "progress_bar"]
+__all__ = [
+    "ANNOUNCE_S",
+    "TIME_LIMIT_S",
+    "Estimate",
+    "announce",
+    "check_job",
+    "duration_text",
+    "progress_bar",
+]
 
 #: Jobs estimated longer than this are refused unless forced, seconds.
 TIME_LIMIT_S = 3600.0
+#: Fast jobs (raster renders, inversions) print their estimate only from this long, seconds.
+ANNOUNCE_S = 10.0
 
 
 @dataclass(frozen=True)
@@ -41,6 +51,8 @@ class Estimate:
         Estimated peak memory, bytes (0: not estimated).
     work : float
         Total of the progress bar's units (default: the estimated seconds).
+    disk : float
+        Estimated bytes written, (0: not estimated).
     """
 
     what: str
@@ -48,6 +60,7 @@ class Estimate:
     seconds: float = 0.0
     memory: float = 0.0
     work: float = 0.0
+    disk: float = 0.0
 
     def with_memory(self, memory: float) -> Estimate:
         """The same estimate with a peak memory, bytes.
@@ -63,11 +76,17 @@ class Estimate:
         """One line: sizes, time and memory."""
         sizes = ", ".join(f"{_count_text(v)} {k}" for k, v in self.counts.items())
         mem = f", {size_text(self.memory)} of memory" if self.memory > 0 else ""
-        return f"{self.what}: about {sizes}; estimated {duration_text(self.seconds)}{mem}"
+        disk = f", {size_text(self.disk)} on disk" if self.disk > 0 else ""
+        return f"{self.what}: about {sizes}; estimated {duration_text(self.seconds)}{mem}{disk}"
 
     def to_dict(self) -> dict[str, Any]:
         """Plain description for metadata."""
-        return {"counts": dict(self.counts), "seconds": self.seconds, "memory_bytes": self.memory}
+        return {
+            "counts": dict(self.counts),
+            "seconds": self.seconds,
+            "memory_bytes": self.memory,
+            "disk_bytes": self.disk,
+        }
 
 
 def duration_text(seconds: float) -> str:

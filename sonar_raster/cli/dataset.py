@@ -26,6 +26,12 @@ def add_parser(sub: Any) -> None:
     ds.add_argument("--workers", type=cli_positive(int), default=1, help="worker processes")
     ds.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler tcp://... or 'local'")
     ds.add_argument("--seed", type=int, default=None, help="global seed (default: config)")
+    ds.add_argument(
+        "--force",
+        action="store_true",
+        help="start even when the samples are estimated over the free disk of DIR or the "
+        "workers over this machine's memory",
+    )
     ds.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
 
 
@@ -37,6 +43,7 @@ def run(args: argparse.Namespace) -> int:
     from ..dataset.generate import generate_dataset, load_dataset_config
 
     config = load_dataset_config(args.config)
+    check_dataset_size(config, args)
     try:
         summary = generate_dataset(
             config,
@@ -66,3 +73,55 @@ def run(args: argparse.Namespace) -> int:
         )
         return 2 if every else 1
     return 0
+
+
+#: Bytes per image cell (ping x bin x side) of one sample's files, uncompressed (an upper
+#: bound): the display PNG (1 or 2 bytes), the EXR (4, when asked), instances (2), classes (1).
+_SAMPLE_BYTES = {"instances": 2, "classes": 1, "exr": 4}
+#: Bytes of one sample's small files (YOLO labels, meta JSON, its index record).
+_SAMPLE_EXTRA = 16384
+#: Peak bytes per image cell in a worker (the render's, with labels and the effects' copies).
+_WORKER_CELL_BYTES = 64
+#: Bytes per texel of a worker's GL targets (as ``render``).
+_TEXEL_BYTES = 24
+
+
+def check_dataset_size(config: Any, args: argparse.Namespace) -> None:
+    """Estimate the dataset's disk (per sample x count) and its workers' memory; refuse it early.
+
+    Refused before the first sample when over the free disk of the output folder or the
+    machine's memory, unless ``--force``; the estimate is printed unless ``--quiet``.
+
+    Parameters
+    ----------
+    config : DatasetConfig
+        The parsed config (``pings``, ``bins``, ``sides``, ``formats``, ``bits``, ``render``).
+    args : argparse.Namespace
+        ``count``, ``workers``, ``output``, ``force``, ``quiet``.
+    """
+    import math
+
+    from .._budget import check_disk, check_memory, size_text
+
+    count = args.count or config.count
+    cells = float(config.pings) * config.bins * len(config.sides)
+    per_cell = config.bits // 8 + _SAMPLE_BYTES["instances"] + _SAMPLE_BYTES["classes"]
+    if "exr" in config.formats:
+        per_cell += _SAMPLE_BYTES["exr"]
+    per_sample = cells * per_cell + _SAMPLE_EXTRA
+    what = (
+        f"{count} samples of {config.pings} pings x {config.bins} bins x {len(config.sides)} sides"
+    )
+    check_disk([(Path(args.output) / "images" / "x", per_sample * count)], what,
+               "lower -n, or write fewer formats", force=args.force)  # fmt: skip
+    oversample = float(config.render.get("oversample", 2.0))
+    along = int(config.render.get("along_samples", 2))
+    texels = min(1 << 26, math.ceil(oversample * config.bins * 1.2) * config.pings * along)
+    per_worker = cells * _WORKER_CELL_BYTES + texels * _TEXEL_BYTES
+    workers = max(1, args.workers) if args.scheduler is None else 1
+    check_memory(per_worker * workers, f"{workers} workers rendering {what.split(' of ')[1]}",
+                 "lower --workers, or the config's pings or bins (or add --force)",
+                 force=args.force)  # fmt: skip
+    if not args.quiet:
+        print(f"dataset: {what}: about {size_text(per_sample * count)} on disk at most, "
+              f"{size_text(per_worker)} of memory per worker", file=sys.stderr)  # fmt: skip

@@ -41,8 +41,10 @@ def add_parser(sub: Any) -> None:
         "even.exr (evenly illuminated, seed Eq. 22), beam_profile.json, seabed.glb/.ply "
         "(textured mesh), preview_az*.png (four views) and DIR/inversion.json. An XTF file "
         "(.xtf) is inverted on both sides (or --side) with its bottom track as altitude, into "
-        "DIR/port/ and DIR/starboard/, plus DIR/bottom_track.csv and, with navigation, "
-        "GeoTIFFs DIR/elevation.tif, reflectivity.tif and mosaic.tif.",
+        "DIR/port/ and DIR/starboard/ (with PNG quick-looks elevation.png, reflectivity.png), "
+        "plus DIR/bottom_track.csv, DIR/waterfall.png and, with navigation, GeoTIFFs "
+        "DIR/elevation.tif, reflectivity.tif and mosaic.tif and their quick-looks "
+        "DIR/elevation.png (hillshaded), reflectivity.png and mosaic.png.",
     )
     inv.add_argument("image", help="input image, or an .xtf file")
     inv.add_argument("-o", "--output", required=True, metavar="DIR", help="output directory")
@@ -134,6 +136,11 @@ def add_parser(sub: Any) -> None:
     inv.add_argument(
         "--pings", metavar="A:B", help="XTF input: ping range to invert (indices, stop excluded)"
     )
+    inv.add_argument(
+        "--force",
+        action="store_true",
+        help="invert even when the job is estimated over an hour or over this machine's memory",
+    )
     inv.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
 
 
@@ -143,7 +150,10 @@ def run(args: argparse.Namespace) -> int:
         _check_output_dir(Path(args.output), ("port", "starboard"))
         return _invert_xtf(args)
     _check_output_dir(Path(args.output), ())
-    _check_image_size(Path(args.image))
+    pixels = _check_image_size(Path(args.image), args.force)
+    if pixels:
+        check_cost(pixels, f"inverting {Path(args.image).name}", "crop the image (fewer pings or "
+                   "range bins) and invert it in parts", args)  # fmt: skip
     from ..inversion.solver import BeamProfile, invert
     from ..inversion.write import energy_summary, write_products
 
@@ -270,8 +280,52 @@ def _read_png_side(path: Path, side: str | None) -> tuple[Any, str, dict]:
 _PIXEL_BYTES = 64
 
 
-def _check_image_size(path: Path) -> None:
-    """Read only the image's header and refuse an image too large to invert on this machine."""
+#: Seconds per input pixel of an inversion at the default settings (3 levels, --max-iter 300):
+#: ``sonar-raster invert`` of a 200 x 600 render took 5.7 s in ``tools/bench_costs.py`` and
+#: 10.7-21.8 s as a command (start-up included), and of 150 pings of the OpenSidescan XTF
+#: (2 x 153 600 samples, both sides, GeoTIFFs) 36.0 s, on 2 cores shared with three other
+#: engineers (load 4-5): 4.7e-5 to 1.8e-4 s per pixel; upper-middle.
+_PIXEL_SECONDS = 1e-4
+#: Bytes per sample of an XTF file (16-bit samples; headers make the count an upper bound).
+_XTF_SAMPLE_BYTES = 2
+
+
+def check_cost(pixels: int, what: str, lower: str, args: argparse.Namespace) -> None:
+    """Estimate an inversion's time and memory from its pixels; refuse it before the solve.
+
+    Refused (one line naming what lowers it) when over an hour or over the machine's
+    memory, unless ``--force``; the estimate is printed when it is over
+    :data:`sonar_raster._progress.ANNOUNCE_S` and not ``--quiet``.
+
+    Parameters
+    ----------
+    pixels : int
+        Input pixels (pings x bins, both sides of an XTF file).
+    what : str
+        The job as the user would name it.
+    lower : str
+        What lowers it, naming options.
+    args : argparse.Namespace
+        ``force`` and ``quiet``.
+    """
+    from .._progress import ANNOUNCE_S, Estimate, announce, check_job
+
+    estimate = Estimate(
+        what,
+        {"pixels": float(pixels)},
+        seconds=_PIXEL_SECONDS * pixels,
+        memory=float(_PIXEL_BYTES) * pixels,
+    )
+    check_job(estimate, lower, force=args.force)
+    if not args.quiet and estimate.seconds >= ANNOUNCE_S:
+        announce(estimate)
+
+
+def _check_image_size(path: Path, force: bool = False) -> int | None:
+    """Read only the image's header; refuse an image too large to invert on this machine.
+
+    Returns its pixels (None when the header cannot be read: the reader reports why).
+    """
     import math
 
     from .._budget import check_memory
@@ -288,27 +342,29 @@ def _check_image_size(path: Path) -> None:
                     (2, 0): np.lib.format.read_array_header_2_0,
                 }.get(version)
                 if read is None:
-                    return
+                    return None
                 shape = read(fh)[0]
         except (OSError, ValueError):
-            return  # read_side names what is wrong with the file
+            return None  # read_side names what is wrong with the file
     elif path.is_file():
         import OpenImageIO as oiio
 
         inp = oiio.ImageInput.open(str(path))
         if inp is None:
-            return
+            return None
         spec = inp.spec()
         inp.close()
         shape = (spec.height, spec.width)
     if shape is None:
-        return
+        return None
     pixels = math.prod(int(n) for n in shape[:2])
     check_memory(
         pixels * _PIXEL_BYTES,
         f"inverting an image of {' x '.join(str(n) for n in shape)} pixels",
         "crop the image (fewer pings or range bins) and invert it in parts",
+        force=force,
     )
+    return pixels
 
 
 def _check_output_dir(out: Path, subdirs: tuple[str, ...]) -> None:
@@ -329,15 +385,31 @@ def _check_output_dir(out: Path, subdirs: tuple[str, ...]) -> None:
     check_can_create(existing)
 
 
+def _xtf_samples(path: Path) -> int | None:
+    """Samples of an XTF file from its size (an upper bound), None if it cannot be read.
+
+    16-bit samples are assumed and the headers are counted as samples.
+    """
+    try:
+        size = path.stat().st_size
+    except OSError:
+        return None  # read_xtf names what is wrong with the file
+    return max(1, size // _XTF_SAMPLE_BYTES)
+
+
 def _invert_xtf(args: argparse.Namespace) -> int:
     """``sonar-raster invert FILE.xtf -o DIR``: both sides, bottom-tracked, with GeoTIFFs."""
     from ..inversion.solver import BeamProfile
     from ..inversion.track_io import summary_lines, write_track_csv
     from ..inversion.write import energy_summary, product_jobs
-    from ..inversion.xtf import georeference, geotiff_jobs, invert_xtf
+    from ..inversion.xtf import georeference, geotiff_jobs, invert_xtf, quicklook_jobs
     from ..io.commit import commit
 
     out = Path(args.output)
+    samples = None if args.pings else _xtf_samples(Path(args.image))  # a crop: not sized
+    if samples:
+        check_cost(samples, f"inverting {Path(args.image).name} (samples from its size)",
+                   "invert fewer pings at a time (--pings A:B)", args)  # fmt: skip
     options: dict[str, Any] = {"max_iter": args.max_iter, "looks": args.looks}
     for name in ("levels", "tol", "flat_prior", "relief_std", "slope_std"):
         if getattr(args, name) is not None:
@@ -364,11 +436,12 @@ def _invert_xtf(args: argparse.Namespace) -> int:
     extra: list[tuple[Path, Callable[[Path], None]]] = [(out / "bottom_track.csv", csv)]
     if raster is not None:
         extra += geotiff_jobs(out, raster)
+    extra += quicklook_jobs(out, result, raster)  # PNGs with colour and scale bars
     jobs = []
     for side, inv in result.sides.items():
         jobs += product_jobs(
             inv, out / side, side, image.sonar.range_bin,
-            mesh=not args.no_mesh, previews=not args.no_previews,
+            mesh=not args.no_mesh, previews=not args.no_previews, quicklooks=True,
         )  # fmt: skip
     made = [d for d in [out, *(out / side for side in result.sides)] if not d.exists()]
     for folder in made:

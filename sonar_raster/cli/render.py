@@ -136,7 +136,8 @@ def add_parser(sub: Any) -> None:
     render.add_argument(
         "--force",
         action="store_true",
-        help="render even when the job's memory estimate exceeds this machine's memory",
+        help="render even when the job's estimate exceeds this machine's memory, the free "
+        "disk of an output's folder, or an hour",
     )
     render.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
     _add_sonar_options(render)
@@ -372,13 +373,14 @@ def placement_lines(setup: Any) -> list[str]:
 def run(args: argparse.Namespace) -> int:
     """Run ``sonar-raster render``."""
     outputs = _check_outputs(args.output)
+    _check_long_track(args, outputs)  # a long --pings is sized before its track is made
     setup = load_setup(args)
     setup = apply_sensor_option(args, setup)  # issue 16: --sensor NAME sets the sonar
     if not args.quiet:
         for line in placement_lines(setup):
             print(line)
     _check_in_range(setup)
-    _check_size(args, setup, _streamed(args, setup))
+    _check_size(args, setup, _streamed(args, setup), outputs)
     if _streamed(args, setup):
         return _render_survey(args, setup, outputs)
     image = _render_image(args, setup)
@@ -452,13 +454,161 @@ _TEXEL_BYTES = 24
 _TILE_BYTES = 16
 
 
-def _check_size(args: argparse.Namespace, setup: Any, streamed: bool) -> None:
-    """Estimate the render's peak memory from its settings; refuse it before allocating."""
-    import math
+#: Seconds per ray of the GL raster (pass 1 and 2 together): ``tools/bench_costs.py`` fits
+#: 2.7e-8 on the 2-core CI machine shared with three other engineers; 1.5x that, upper-end.
+_RAY_SECONDS = 4e-8
+#: Seconds per image cell (ping x bin x side) besides the rays: with sensor effects (measured
+#: 2.5e-7) and without (1e-8 fitted; encoding included), with the same margin or more.
+_CELL_SECONDS = (4e-7, 5e-8)
+#: Seconds per scene triangle: upload, tiling and shader set-up (3.0 s for 2 M triangles,
+#: docs/performance.md).
+_TRIANGLE_SECONDS = 1.5e-6
 
+
+#: A ``--pings`` above this is sized from a two-ping load of the scene before the track (about
+#: 100 bytes a ping) is made: 10^8 pings take 18 s and 10 GB just to make.
+_PRECHECK_PINGS = 1_000_000
+
+
+def _check_long_track(args: argparse.Namespace, outputs: list[Path]) -> None:
+    """Size a long ``--pings`` job from a two-ping load of the scene; refuse it before loading."""
+    if not args.pings or args.pings <= _PRECHECK_PINGS:
+        return
+    from .._budget import check_memory
+    from ..scenes.description import TRACK_BYTES_PER_PING
+
+    check_memory(  # the poses alone first, as loading the scene would
+        args.pings * TRACK_BYTES_PER_PING,
+        f"a track of {args.pings} pings",
+        "lower 'pings' in [trajectory] or --pings",
+    )
+    probe = argparse.Namespace(**{**vars(args), "pings": 2, "quiet": True})
+    setup = apply_sensor_option(probe, load_setup(probe))
+    cells = args.pings * setup.sonar.n_bins * len(setup.sonar.sides)
+    raster = _model(args) == "raster"
+    streamed = raster and (args.chunk_pings is not None or cells > _STREAM_CELLS)
+    _check_size(args, setup, streamed, outputs, pings=args.pings, announce_it=False)
+
+
+def _check_size(
+    args: argparse.Namespace,
+    setup: Any,
+    streamed: bool,
+    outputs: list[Path] | None = None,
+    *,
+    pings: int | None = None,
+    announce_it: bool = True,
+) -> None:
+    """Estimate the render's peak memory, time and output size; refuse it before allocating.
+
+    Refused when over the machine's memory, the free disk of an output's folder, or an hour
+    (``--force`` skips the three); the estimate is printed when it is long.
+    """
+    pings = pings or setup.trajectory.n_pings
+    _check_memory(args, setup, streamed, pings)
+    if _model(args) != "raster":  # the reference and coherent models size their own jobs
+        return
+    from .._budget import check_disk
+    from .._progress import ANNOUNCE_S, announce, check_job
+
+    estimate = raster_estimate(args, setup, streamed, outputs or [], pings)
+    check_disk(
+        _output_sizes(args, setup, streamed, outputs or [], pings),
+        estimate.what,
+        "lower --pings or --range, or raise --range-bin",
+        force=args.force,
+    )
+    check_job(estimate, "lower --pings, --oversample or --along-samples", force=args.force)
+    if announce_it and not args.quiet and estimate.seconds >= ANNOUNCE_S:
+        announce(estimate)
+
+
+def raster_estimate(
+    args: argparse.Namespace,
+    setup: Any,
+    streamed: bool,
+    outputs: list[Path],
+    pings: int | None = None,
+) -> Any:
+    """The GL raster render's size (rays, cells), time and output bytes, from its settings.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed ``render`` options (``--oversample``, ``--along-samples``, effects).
+    setup : SceneSetup
+        The loaded scene, sonar and track.
+    streamed : bool
+        The render goes block by block (no sensor effects).
+    outputs : list of Path
+        The files to write.
+    pings : int, optional
+        Pings of the track (default: the setup's).
+
+    Returns
+    -------
+    sonar_raster._progress.Estimate
+    """
+    from .._progress import Estimate
+
+    sonar, pings = setup.sonar, pings or setup.trajectory.n_pings
+    sides, bins = len(sonar.sides), sonar.n_bins
+    settings = _settings(args)
+    rays = float(pings) * settings.along_samples * math.ceil(settings.oversample * bins * 1.2)
+    rays *= sides
+    cells = float(pings) * bins * sides
+    effects = not streamed and effects_from_args(args, setup.effects) is not None
+    triangles = float(setup.scene.n_triangles)
+    seconds = (
+        _RAY_SECONDS * rays
+        + _CELL_SECONDS[0 if effects else 1] * cells
+        + _TRIANGLE_SECONDS * triangles
+    )
+    disk = sum(size for _, size in _output_sizes(args, setup, streamed, outputs, pings))
+    return Estimate(
+        f"rendering {pings} pings x {bins} bins x {sides} sides",
+        {"rays": rays, "cells": cells, "triangles": triangles},
+        seconds=seconds,
+        disk=disk,
+    )
+
+
+def _output_sizes(
+    args: argparse.Namespace,
+    setup: Any,
+    streamed: bool,
+    outputs: list[Path],
+    pings: int | None = None,
+) -> list[tuple[Path, float]]:
+    """Upper-end bytes of each output: uncompressed pixels plus headers."""
+    sonar, pings = setup.sonar, pings or setup.trajectory.n_pings
+    sides, bins = len(sonar.sides), sonar.n_bins
+    cells = float(pings) * bins * sides
+    exr = 4.0 * cells + 65536.0
+    sizes: list[tuple[Path, float]] = []
+    for path in outputs:
+        kind = path.suffix.lower()
+        if kind == ".xtf":
+            sizes.append((path, pings * (256.0 + sides * (64.0 + 4.0 * bins))))
+            continue
+        sizes.append((path.with_suffix(".json"), 65536.0 + 64.0 * pings))
+        if kind == ".exr":
+            sizes.append((path, exr))
+            continue
+        rows = 1.0
+        if getattr(args, "square_pixels", False):
+            rows = max(1.0, setup.trajectory.typical_spacing / sonar.range_bin)
+        sizes.append((path, cells * rows * (args.bits // 8) * 3.0 + 65536.0))  # RGB at most
+        if streamed and not any(o.suffix.lower() == ".exr" for o in outputs):
+            sizes.append((path, exr))  # the streamed PNG is made from a temporary EXR
+    return sizes
+
+
+def _check_memory(args: argparse.Namespace, setup: Any, streamed: bool, pings: int) -> None:
+    """Estimate the render's peak memory from its settings; refuse it before allocating."""
     from .._budget import check_memory
 
-    sonar, pings = setup.sonar, setup.trajectory.n_pings
+    sonar = setup.sonar
     sides, bins = len(sonar.sides), sonar.n_bins
     model = _model(args)
     if model != "raster":

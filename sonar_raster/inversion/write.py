@@ -103,6 +103,8 @@ PRODUCTS = {
     "beam_profile.json": "Φ against depression angle, for calibrated mode (--beam)",
     "seabed.glb": "textured mesh: X across track (+ starboard), Y along track, Z elevation, metres",
     "seabed.ply": "the same mesh with vertex colours",
+    "elevation.png": "quick-look of elevation.exr: hillshaded, coloured by Z, pings downward",
+    "reflectivity.png": "quick-look of reflectivity.exr, pings downward",
 }
 
 
@@ -163,11 +165,20 @@ def product_jobs(
     previews: bool = True,
     preview_size: tuple[int, int] = (640, 480),
     backend: str | None = None,
+    quicklooks: bool = False,
 ) -> list[tuple[Path, Callable[[Path], None]]]:
     """The (path, writer) jobs of :func:`write_products`; nothing is written.
 
     For a caller that commits them together with other files in one
-    :func:`sonar_raster.io.commit.commit`. Parameters as for :func:`write_products`.
+    :func:`sonar_raster.io.commit.commit`.
+
+    Parameters
+    ----------
+    inv, directory, side, range_bin, mesh, previews, preview_size, backend
+        As for :func:`write_products`.
+    quicklooks : bool
+        Also PNG quick-looks ``elevation.png`` (hillshaded) and ``reflectivity.png`` of the
+        maps, with colour and scale bars (:mod:`sonar_raster.inversion.quicklook`).
     """
     from ..io.commit import write_json
 
@@ -180,6 +191,8 @@ def product_jobs(
         (directory / f"{k}.exr", partial(_write_map, values=v, name=k)) for k, v in maps.items()
     ]
     jobs.append((directory / "beam_profile.json", inv.profile.save))
+    if quicklooks:
+        jobs += _quicklook_jobs(inv, directory, side)
     extra: dict = {}
     if mesh or previews:
         extra.update(_mesh_jobs(inv, directory, side, jobs, mesh, previews, preview_size, backend))
@@ -193,6 +206,24 @@ def product_jobs(
         )
     )
     return jobs
+
+
+def _quicklook_jobs(
+    inv: Inversion, directory: Path, side: str
+) -> list[tuple[Path, Callable[[Path], None]]]:
+    """Hillshaded elevation and reflectivity quick-looks of one side, rows = pings."""
+    from . import quicklook as ql
+
+    dx = float(inv.x[1] - inv.x[0])
+    dy = float(inv.ping_spacing) if np.isfinite(inv.ping_spacing) else None
+    return [
+        (directory / "elevation.png", partial(ql.hillshade_png, elevation=inv.elevation, cell_m=dx,
+                                              along_m=dy, title=f"{side}: elevation Z",
+                                              label="Z, m (re the transducer)", north_up=False)),
+        (directory / "reflectivity.png", partial(ql.reflectivity_png, values=inv.reflectivity,
+                                                 cell_m=dx, along_m=dy,
+                                                 title=f"{side}: reflectivity", north_up=False)),
+    ]  # fmt: skip
 
 
 def _mesh_jobs(inv, directory, side, jobs, mesh, previews, size, backend) -> dict:

@@ -1,0 +1,168 @@
+"""Jobs say what they will cost before they start and are refused beyond the limits (issue 19):
+raster renders (time, disk), inversions (time from the image size), datasets (disk, memory)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sonar_raster import _budget
+from sonar_raster.cli import render as render_cli
+from sonar_raster.cli.app import main
+
+SCENE = "flat_calibration"  # 50 pings x 600 bins x 2 sides, renders in well under a second
+XTF = Path(__file__).resolve().parents[3] / "shared" / "data" / "xtf" / "scotsman-iver2.xtf"
+
+
+def one_error_line(err: str) -> str:
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1, err
+    assert lines[0].startswith("sonar-raster: error: ") and "Traceback" not in err
+    return lines[0]
+
+
+def test_a_render_larger_than_the_free_disk_is_refused_before_rendering(
+    tmp_path, capsys, monkeypatch
+):
+    monkeypatch.setattr(_budget, "free_disk", lambda folder: 100_000)
+    out = tmp_path / "out.exr"
+    assert main(["render", SCENE, "-o", str(out), "-q"]) == 2
+    line = one_error_line(capsys.readouterr().err)
+    assert "free in" in line and "--pings" in line and "--force" in line
+    assert list(tmp_path.iterdir()) == []
+    assert main(["render", SCENE, "-o", str(out), "-q", "--force"]) == 0
+
+
+def test_the_disk_estimate_bounds_what_is_written(tmp_path):
+    """Upper-end, but not absurd: the files written are at most the estimate and more than a
+    fiftieth of it."""
+    outs = [tmp_path / "a.png", tmp_path / "a.exr", tmp_path / "a.xtf"]
+    args = ["render", SCENE, "--pings", "400", "-q"] + [a for o in outs for a in ("-o", str(o))]
+    assert main(args) == 0
+    parsed = _parse(args)
+    setup = render_cli.load_setup(parsed)
+    sizes = render_cli._output_sizes(parsed, setup, False, outs)
+    estimate = sum(s for _, s in sizes)
+    written = sum(p.stat().st_size for p in tmp_path.iterdir())
+    assert written <= estimate < 50 * written
+
+
+def _parse(argv):
+    from sonar_raster.cli.app import _parser
+
+    return _parser().parse_args(argv)
+
+
+def test_a_long_render_is_announced_and_refused_past_an_hour(tmp_path, capsys, monkeypatch):
+    out = str(tmp_path / "out.png")
+    monkeypatch.setattr(render_cli, "_RAY_SECONDS", 20.0 / 288_000)  # 288 000 rays: 20 s
+    assert main(["render", SCENE, "-o", out]) == 0
+    err = capsys.readouterr().err
+    assert "rendering 50 pings x 600 bins x 2 sides: about" in err and "estimated 2" in err
+    assert main(["render", SCENE, "-o", out, "-q"]) == 0
+    assert capsys.readouterr().err == ""  # -q: no estimate
+    monkeypatch.setattr(render_cli, "_RAY_SECONDS", 1.0)
+    assert main(["render", SCENE, "-o", out, "--oversample", "4", "-q"]) == 2
+    line = one_error_line(capsys.readouterr().err)
+    assert "over the 60 min limit" in line and "--oversample" in line and "--force" in line
+    assert main(["render", SCENE, "-o", out, "--pings", "10", "-q", "--force"]) == 0
+
+
+def test_render_rays_follow_the_sampling_settings():
+    base = _parse(["render", SCENE, "-o", "x.png"])
+    setup = render_cli.load_setup(base)
+    one = render_cli.raster_estimate(base, setup, False, [])
+    more = render_cli.raster_estimate(
+        _parse(["render", SCENE, "-o", "x.png", "--along-samples", "8", "--oversample", "8"]),
+        setup, False, [],
+    )  # fmt: skip
+    assert one.counts["cells"] == 50 * 600 * 2 == more.counts["cells"]
+    assert more.counts["rays"] / one.counts["rays"] == pytest.approx(16.0, rel=0.01)
+
+
+def test_an_inversion_estimated_over_an_hour_is_refused(tmp_path, capsys, monkeypatch):
+    from sonar_raster.cli import invert as invert_cli
+
+    np.save(tmp_path / "img.npy", np.ones((40, 64), np.float32))
+    monkeypatch.setattr(invert_cli, "_PIXEL_SECONDS", 2.0)  # 2560 px: 85 min
+    cmd = ["invert", str(tmp_path / "img.npy"), "--range-bin", "0.1", "-o", str(tmp_path / "o")]
+    assert main([*cmd, "-q"]) == 2
+    line = one_error_line(capsys.readouterr().err)
+    assert "img.npy" in line and "2560 pixels" in line and "crop the image" in line
+    assert not (tmp_path / "o").exists()
+    monkeypatch.setattr(invert_cli, "_PIXEL_SECONDS", 0.01)  # 26 s: announced, then run
+    run = [
+        *cmd,
+        "--altitude",
+        "1",
+        "--max-iter",
+        "2",
+        "--levels",
+        "1",
+        "--no-mesh",
+        "--no-previews",
+    ]
+    assert main(run) == 0
+    assert "estimated 26 s" in capsys.readouterr().err
+
+
+def test_an_xtf_inversion_is_sized_from_the_file_before_reading_it(tmp_path, capsys, monkeypatch):
+    from sonar_raster.cli import invert as invert_cli
+
+    if not XTF.is_file():
+        pytest.fail(f"{XTF} is missing: the shared data must sit beside the clone")
+    monkeypatch.setattr(invert_cli, "_PIXEL_SECONDS", 1.0)
+    assert main(["invert", str(XTF), "-o", str(tmp_path / "o"), "-q"]) == 2
+    line = one_error_line(capsys.readouterr().err)
+    assert "scotsman-iver2.xtf" in line and "--pings A:B" in line
+
+
+def test_a_dataset_larger_than_the_free_disk_or_memory_is_refused(tmp_path, capsys, monkeypatch):
+    out = tmp_path / "ds"
+    monkeypatch.setattr(_budget, "free_disk", lambda folder: 10_000_000)
+    assert main(["dataset", "dataset_default", "-o", str(out), "-n", "20", "-q"]) == 2
+    line = one_error_line(capsys.readouterr().err)
+    assert "20 samples of 512 pings x 1024 bins x 1 sides" in line and "lower -n" in line
+    assert not out.exists()
+    monkeypatch.setattr(_budget, "free_disk", lambda folder: 1 << 40)
+    monkeypatch.setattr(_budget, "physical_memory", lambda: 1 << 28)
+    assert main(["dataset", "dataset_default", "-o", str(out), "-n", "2", "-q",
+                 "--workers", "4"]) == 2  # fmt: skip
+    assert "--workers" in one_error_line(capsys.readouterr().err)
+    assert not out.exists()
+
+
+def test_check_disk_adds_up_outputs_on_one_file_system(tmp_path, monkeypatch):
+    from sonar_raster.errors import SonarRasterError
+
+    monkeypatch.setattr(_budget, "free_disk", lambda folder: 1000)
+    _budget.check_disk([(tmp_path / "a", 600)], "job", "lower it")
+    with pytest.raises(SonarRasterError, match=r"about 1\.2 KiB, more than the 1000 B free"):
+        _budget.check_disk([(tmp_path / "a", 600), (tmp_path / "new" / "b", 600)], "job", "x")
+    _budget.check_disk([(tmp_path / "a", 6000)], "job", "lower it", force=True)
+
+
+def test_free_disk_of_a_folder_yet_to_be_made_is_its_parent_s(tmp_path):
+    assert _budget.free_disk(tmp_path / "not" / "yet") == _budget.free_disk(tmp_path)
+
+
+def test_a_long_track_is_sized_before_it_is_made(tmp_path, capsys, monkeypatch):
+    """--pings 100000000: refused from a two-ping load of the scene (the full track alone
+    would take 10 GB and 18 s to make), in one line, nothing written."""
+    loaded = []
+    real = render_cli.load_setup
+
+    def spy(args):
+        loaded.append(args.pings)
+        return real(args)
+
+    monkeypatch.setattr(render_cli, "load_setup", spy)
+    monkeypatch.setattr(_budget, "free_disk", lambda folder: 1 << 30)
+    out = tmp_path / "out.png"
+    assert main(["render", SCENE, "--pings", "100000000", "-o", str(out)]) == 2
+    line = one_error_line(capsys.readouterr().err)
+    assert "rendering 100000000 pings x 600 bins x 2 sides would write about" in line
+    assert "--pings" in line and loaded == [2]
+    assert list(tmp_path.iterdir()) == []
