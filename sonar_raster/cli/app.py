@@ -29,10 +29,10 @@ COMMANDS = {
     "render": render,
     "invert": invert,
     "dataset": dataset,
-    "insert": insert,  # issue 17
+    "insert": insert,
     "track": track,
     "scenes": scenes,
-    "sensors": sensors,  # issue 16
+    "sensors": sensors,
     "doctor": doctor,
 }
 

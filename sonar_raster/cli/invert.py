@@ -69,6 +69,15 @@ def add_parser(sub: Any) -> None:
         "file (default both)",
     )
     inv.add_argument(
+        "--method",
+        choices=("profiles", "surface"),
+        default="profiles",
+        help="profiles (default): one elevation profile per ping from one side; surface: one "
+        "smooth surface fitted to every ping of both sides (where the image has both) with a "
+        "speckle likelihood, into DIR/port/ and DIR/starboard/ with elevation_std.exr; "
+        "see docs/inversion.md",
+    )
+    inv.add_argument(
         "--max-iter",
         type=cli_positive(int),
         default=300,
@@ -154,6 +163,8 @@ def run(args: argparse.Namespace) -> int:
     if pixels:
         check_cost(pixels, f"inverting {Path(args.image).name}", "crop the image (fewer pings or "
                    "range bins) and invert it in parts", args)  # fmt: skip
+    if args.method == "surface":
+        return _invert_surface(args)
     from ..inversion.solver import BeamProfile, invert
     from ..inversion.write import energy_summary, write_products
 
@@ -187,6 +198,56 @@ def run(args: argparse.Namespace) -> int:
             print(line)
         for path in written:
             print(f"wrote {path}")
+    return 0
+
+
+def _invert_surface(args: argparse.Namespace) -> int:
+    """``invert --method surface``: both sides of the image (or ``--side``) in one fit."""
+    import numpy as np
+
+    from ..inversion.surface import invert_line
+    from ..inversion.write import product_jobs
+    from ..io.commit import commit
+
+    for name, value in (("--beam", args.beam), ("--flat-prior", args.flat_prior)):
+        if value:
+            raise SonarRasterError(f"{name} is not used by --method surface; leave it out")
+    path = Path(args.image)
+    sides, range_bin = {}, args.range_bin
+    image, got, range_bin = load_side(path, args.side, range_bin)
+    sides[got] = image
+    other = "port" if got == "starboard" else "starboard"
+    if args.side is None and path.suffix.lower() == ".exr":  # the renderer's EXR holds both
+        try:
+            sides[other] = load_side(path, other, range_bin)[0]
+        except SonarRasterError:
+            pass  # a one-sided EXR: fit the side it has
+    pings = image.shape[0]
+    spacing = args.ping_spacing or float(range_bin)
+    altitude = None if args.altitude is None else np.full(pings, float(args.altitude))
+    results = invert_line(
+        sides,
+        float(range_bin),
+        ping_spacing=spacing,
+        altitude=altitude,
+        looks="auto" if args.looks in ("auto", None) else args.looks,
+        max_iter=args.max_iter,
+        progress=None if args.quiet else print,
+    )
+    out = Path(args.output)
+    jobs = []
+    for name, result in results.items():
+        folder = out / name if len(results) > 1 else out
+        jobs += product_jobs(
+            result, folder, name, float(range_bin), mesh=not args.no_mesh,
+            previews=not args.no_previews,
+        )  # fmt: skip
+    for folder in {p.parent for p, _ in jobs}:
+        folder.mkdir(parents=True, exist_ok=True)
+    written = commit(jobs)
+    if not args.quiet:
+        for written_path in written:
+            print(f"wrote {written_path}")
     return 0
 
 

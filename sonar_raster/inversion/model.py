@@ -364,3 +364,42 @@ def gauss_newton_z(
     if prior_matrix is not None:
         h = h + prior_matrix.tocsc()
     return -spsolve(h, grad_z.ravel()).reshape(z.shape)
+
+
+def adjoint(
+    grad_model: np.ndarray, r: np.ndarray, phi: np.ndarray, z: np.ndarray, geom: Geometry
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Gradients wrt every ground cell's R, Φ and Z of any objective of the model image.
+
+    Parameters
+    ----------
+    grad_model : ndarray, shape (pings, bins)
+        ``∂E/∂Î`` at ``Î = forward(r, phi, z, geom)``.
+    r, phi, z : ndarray, shape (pings, cells)
+        Reflectivity, beam gain and elevation per ground cell.
+    geom : Geometry
+        The grid and bins.
+
+    Returns
+    -------
+    tuple of ndarray, each shape (pings, cells)
+        ``∂E/∂R``, ``∂E/∂Φ``, ``∂E/∂Z``: the chain rule of :func:`evaluate` (shadowed cells,
+        ``q = 0``, have a zero derivative wrt Z through ``q``).
+    """
+    c = _cells(z, geom)
+    rb, dx, n = geom.range_bin, geom.dx, len(c.subs)
+    e = phi * r * c.q * dx
+    grad = grad_model / rb
+    b = np.zeros_like(e)
+    shift_z, shift_zx = np.zeros_like(e), np.zeros_like(e)
+    for sub in c.subs:
+        g0, g1 = _gather(grad, sub)
+        b += ((1.0 - sub.t) * g0 + sub.t * g1) / n
+        moved = e / n * (g1 - g0) / rb * sub.zr
+        shift_z += moved
+        shift_zx += moved * sub.offset
+    amp = phi * r * dx * c.lit
+    x = geom.x[None, :]
+    dq_dz = -1.0 / c.rho - c.q * z / c.rho**2
+    gz = b * amp * dq_dz + shift_z + slope_adjoint(b * amp * x / c.rho + shift_zx, 1, dx)
+    return b * phi * c.q * dx, b * r * c.q * dx, gz

@@ -148,6 +148,9 @@ class Inversion:
         ``flat_prior``, ``looks`` (the number used, None without priors), ``relief_std``,
         ``slope_std``, ``calibrated`` (Φ fixed from a profile) and ``altitude`` (``"given"`` or
         ``"first return"``).
+    elevation_std : ndarray or None
+        Standard deviation of Z per cell, metres, where the method estimates it (the surface
+        fit, :func:`sonar_raster.inversion.surface.invert_line`).
     """
 
     x: np.ndarray
@@ -163,6 +166,7 @@ class Inversion:
     ping_spacing: float = math.nan
     runs: list[dict] = field(default_factory=list)
     settings: dict = field(default_factory=dict)
+    elevation_std: np.ndarray | None = None
 
     @property
     def iterations(self) -> int:

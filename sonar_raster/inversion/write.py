@@ -88,6 +88,8 @@ def summary(inv: Inversion, side: str, range_bin: float, extra: dict | None = No
 
 
 def _level_doc(run: dict) -> dict:
+    if "starts" not in run:  # the surface fit: one start per level
+        return {k: float(v) if isinstance(v, np.floating) else v for k, v in run.items()}
     starts = [{**s, "energy": float(s["energy"])} for s in run["starts"]]
     return {**run, "starts": starts}
 
@@ -100,6 +102,8 @@ PRODUCTS = {
     "range: I(ρ)/Δr · x/ρ with ρ = sqrt(x² + Z²)",
     "even.exr": "evenly illuminated ground-range image (seed Eq. 22): ground / (Φ cos⟨θ⟩), "
     "cos⟨θ⟩ = −Z / sqrt(x² + Z²); equals R on a level seabed",
+    "elevation_std.exr": "standard deviation of Z per cell, metres (Laplace approximation; "
+    "surface fit only)",
     "beam_profile.json": "Φ against depression angle, for calibrated mode (--beam)",
     "seabed.glb": "textured mesh: X across track (+ starboard), Y along track, Z elevation, metres",
     "seabed.ply": "the same mesh with vertex colours",
@@ -187,6 +191,8 @@ def product_jobs(
         maps["ground"] = inv.reprojected
     if inv.even is not None:
         maps["even"] = inv.even
+    if inv.elevation_std is not None:
+        maps["elevation_std"] = inv.elevation_std
     jobs: list[tuple[Path, Callable[[Path], None]]] = [
         (directory / f"{k}.exr", partial(_write_map, values=v, name=k)) for k, v in maps.items()
     ]

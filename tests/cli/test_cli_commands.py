@@ -16,12 +16,13 @@ _REQUIRED = {
     "invert": ["i.exr", "-o", "d"],
     "dataset": ["c.toml", "-o", "d"],
     "track": ["f.xtf"],
+    "insert": ["r.xtf", "-o", "o"],
 }
 
 
 def test_every_command_is_a_module_with_its_parser_and_run():
     assert list(app.COMMANDS) == [
-        "render", "invert", "dataset", "track", "scenes", "sensors", "doctor"
+        "render", "invert", "dataset", "insert", "track", "scenes", "sensors", "doctor"
     ]  # fmt: skip
     for name, module in app.COMMANDS.items():
         assert module.__name__ == f"sonar_raster.cli.{name}"

@@ -1,0 +1,180 @@
+"""Bathymetry from one speckled line: the surface fit against a flat seabed at the first return.
+
+A benchmark, not a test: it prints a table, writes a plot and asserts nothing. Each seabed is
+rendered by the GL raster path (both sides, 12 m altitude, 30 m range in 5 cm bins, pings
+0.1 m apart, a Gaussian 50° beam tilted 20°), optionally times single-look speckle
+(``--looks 1``: each bin times an independent Gamma(1, 1) draw), and inverted by
+:func:`sonar_raster.inversion.surface.fit_surface`. The baseline, computed in the same run, is a
+flat seabed at each ping's first-return altitude (the package's bottom tracker). Scores are
+Z RMSE over the relief's standard deviation (lower is better; the flat baseline scores about 1),
+over ground ranges 1 m to 2 m short of the swath's end, both sides.
+
+Seabeds: sand waves (0.15 m amplitude, 3 m wavelength, crests at 30° to the track); two mounds
+(0.6 m, σ 2 m and 0.4 m, σ 1.5 m); two trenches along track (0.4 m, σ 0.7 m and 0.3 m, σ 1 m);
+a rough plain (0.1 m rms, 1 m correlation) with two reflectivity patches (0.9 and 0.2 on 0.5);
+boulders (20 half-spheres, 0.3–0.8 m across, on a flat seabed); a wreck-like box (6 × 2.5 m,
+1.5 m high) on a flat seabed.
+
+Usage: ``python tools/bench_bathymetry.py [--seabeds sand,mound,...] [--looks 0,1]
+[--pings 200] [--out bench_out]``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import zlib
+from pathlib import Path
+
+import numpy as np
+from _common import DOCS, parser, pyplot
+from scipy import ndimage
+
+from sonar_raster.inversion.bottom import track_bottom
+from sonar_raster.inversion.surface import fit_surface
+from sonar_raster.rendering.gl.raster import RasterRenderer
+from sonar_raster.scene import build_scene
+from sonar_raster.scenes.seabed import from_grid
+from sonar_raster.sonar import BeamPattern, Sonar
+from sonar_raster.trajectory import Trajectory
+
+ALT, SPACING, BIN, RANGE, CELL = 12.0, 0.1, 0.05, 30.0, 0.05
+SONAR = Sonar(
+    max_range=RANGE,
+    range_bin=BIN,
+    beam=BeamPattern.gaussian(50.0),
+    tilt=math.radians(20.0),
+    sides=("port", "starboard"),
+)
+
+
+def _sand(x, y, length):
+    u = x * math.cos(math.radians(30)) + y * math.sin(math.radians(30))
+    return 0.15 * np.sin(2 * np.pi * u / 3.0)
+
+
+def _mounds(x, y, length):
+    a = 0.6 * np.exp(-((x - 12) ** 2 + (y - length / 2) ** 2) / (2 * 2.0**2))
+    return a + 0.4 * np.exp(-((x + 9) ** 2 + (y - length / 3) ** 2) / (2 * 1.5**2))
+
+
+def _trenches(x, y, length):
+    a = -0.4 * np.exp(-((x - 10) ** 2) / (2 * 0.7**2))
+    return a - 0.3 * np.exp(-((x + 14) ** 2) / (2 * 1.0**2))
+
+
+def _rough(x, y, length):
+    noise = np.random.default_rng(3).normal(size=x.shape)
+    smooth = ndimage.gaussian_filter(noise, 1.0 / CELL / 2)
+    return 0.1 * smooth / smooth.std()
+
+
+def _patches(x, y, length):
+    r = np.full(x.shape, 0.5)
+    r[(x > 6) & (x < 12) & (y < length / 2)] = 0.9
+    r[(x < -8) & (x > -15) & (y > length / 3)] = 0.2
+    return r
+
+
+def _boulders(x, y, length):
+    rng = np.random.default_rng(7)
+    z = np.zeros_like(x)
+    for _ in range(20):
+        cx, cy = rng.uniform(-24, 24), rng.uniform(2, length - 2)
+        radius = rng.uniform(0.15, 0.4)
+        d2 = (x - cx) ** 2 + (y - cy) ** 2
+        z = np.maximum(z, np.sqrt(np.clip(radius**2 - d2, 0, None)))
+    return z
+
+
+def _box(x, y, length):
+    inside = (np.abs(x - 11) < 1.25) & (np.abs(y - length / 2) < 3.0)
+    return np.where(inside, 1.5, 0.0)
+
+
+SEABEDS = {
+    "sand": (_sand, None),
+    "mounds": (_mounds, None),
+    "trenches": (_trenches, None),
+    "patches": (_rough, _patches),
+    "boulders": (_boulders, None),
+    "box": (_box, None),
+}
+
+
+def render(name: str, pings: int, looks: float):
+    """The heightfield, the track and the (speckled) sides of one seabed."""
+    length = pings * SPACING
+    height, refl = SEABEDS[name]
+    x = np.arange(-33.0, 33.0 + CELL / 2, CELL)
+    y = np.arange(-3.0, length + 3.0 + CELL / 2, CELL)
+    xx, yy = np.meshgrid(x, y)
+    field = from_grid(height(xx, yy, length), CELL, CELL, x0=-33.0, y0=-3.0)
+    r = np.full(xx.shape, 0.5) if refl is None else refl(xx, yy, length)
+    track = Trajectory.straight((0.0, 0.0, ALT), 0.0, SPACING, pings)
+    image = RasterRenderer().render(build_scene([field.mesh(r)]), SONAR, track)
+    sides = {k: v.astype(np.float64) for k, v in image.sides.items()}
+    if looks > 0:
+        rng = np.random.default_rng(zlib.crc32(name.encode()))
+        sides = {k: v * rng.gamma(looks, 1.0 / looks, v.shape) for k, v in sides.items()}
+    return field, track, sides
+
+
+def score(field, track, x, elevation: dict, baseline: np.ndarray) -> tuple[float, float, float]:
+    """(fit, flat baseline) Z RMSE over the relief std, and the fit's Z correlation."""
+    keep = (x > 1.0) & (x < x[-1] - 2.0)
+    y = track.positions[:, 1]
+    fits, truths, flats = [], [], []
+    for side, sign in (("port", -1.0), ("starboard", 1.0)):
+        xx, yy = np.meshgrid(sign * x[keep], y)
+        truths.append(field.height_at(xx, yy) - ALT)
+        fits.append(elevation[side][:, keep])
+        flats.append(np.broadcast_to(-baseline[:, None], xx.shape))
+    t, f, b = (np.concatenate(a, axis=1) for a in (truths, fits, flats))
+    std = float(np.std(t))
+    rel = float(np.sqrt(np.mean((f - t) ** 2))) / std
+    flat = float(np.sqrt(np.mean((b - t) ** 2))) / std
+    return rel, flat, float(np.corrcoef(f.ravel(), t.ravel())[0, 1])
+
+
+def main() -> None:
+    cli = parser(__doc__, out=Path("bench_out"))
+    cli.add_argument("--seabeds", default=",".join(SEABEDS))
+    cli.add_argument("--looks", default="0,1", help="speckle looks per run (0: none)")
+    cli.add_argument("--pings", type=int, default=200)
+    args = cli.parse_args()
+    rows = []
+    print(f"{'seabed':9s} {'looks':>5s} {'fit':>6s} {'flat':>6s} {'ratio':>6s} {'corr':>5s} {'s':>6s}")
+    for name in args.seabeds.split(","):
+        for looks in (float(v) for v in args.looks.split(",")):
+            field, track, sides = render(name, args.pings, looks)
+            start = time.perf_counter()
+            fit = fit_surface(sides, BIN, ping_spacing=SPACING)
+            seconds = time.perf_counter() - start
+            baseline = track_bottom(sides, BIN).altitude
+            rel, flat, corr = score(field, track, fit.x, fit.elevation, baseline)
+            rows.append((name, looks, rel, flat, seconds))
+            print(
+                f"{name:9s} {looks:5g} {rel:6.3f} {flat:6.3f} {rel / flat:6.2f} {corr:5.2f} "
+                f"{seconds:6.1f}",
+                flush=True,
+            )
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(7, 3.2))
+    labels = [f"{n}\n{'speckle' if lk else 'clean'}" for n, lk, *_ in rows]
+    pos = np.arange(len(rows))
+    ax.bar(pos - 0.2, [r[3] for r in rows], 0.4, label="flat at the first return", color="0.7")
+    ax.bar(pos + 0.2, [r[2] for r in rows], 0.4, label="surface fit", color="tab:blue")
+    ax.set_xticks(pos, labels, fontsize=7)
+    ax.set_ylabel("Z RMSE / relief std")
+    ax.axhline(0.6, color="k", lw=0.8, ls="--")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    args.out.mkdir(parents=True, exist_ok=True)
+    fig.savefig(args.out / "bathymetry.png", dpi=110)
+    fig.savefig(DOCS / "bathymetry.png", dpi=70)
+    print(f"plot: {args.out / 'bathymetry.png'}")
+
+
+if __name__ == "__main__":
+    main()
