@@ -21,8 +21,14 @@ def test_readme_python_example_runs_from_another_folder(tmp_path):
         [sys.executable, "-c", blocks[0]], cwd=tmp_path, capture_output=True, text=True
     )
     assert done.returncode == 0, done.stderr
-    for name in ("raw.exr", "raw.json", "recorded.png", "seabed/elevation.exr",
-                 "seabed/inversion.json", "seabed/seabed.glb"):
+    for name in (
+        "raw.exr",
+        "raw.json",
+        "recorded.png",
+        "seabed/elevation.exr",
+        "seabed/inversion.json",
+        "seabed/seabed.glb",
+    ):
         assert (tmp_path / name).is_file(), name
 
 

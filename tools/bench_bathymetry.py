@@ -144,7 +144,9 @@ def main() -> None:
     cli.add_argument("--pings", type=int, default=200)
     args = cli.parse_args()
     rows = []
-    print(f"{'seabed':9s} {'looks':>5s} {'fit':>6s} {'flat':>6s} {'ratio':>6s} {'corr':>5s} {'s':>6s}")
+    print(
+        f"{'seabed':9s} {'looks':>5s} {'fit':>6s} {'flat':>6s} {'ratio':>6s} {'corr':>5s} {'s':>6s}"
+    )
     for name in args.seabeds.split(","):
         for looks in (float(v) for v in args.looks.split(",")):
             field, track, sides = render(name, args.pings, looks)

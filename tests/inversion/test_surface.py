@@ -1,4 +1,4 @@
-"""The surface fit: exact gradients, bases, and a speckled round trip it must win over a flat seabed."""
+"""The surface fit: exact gradients, bases, and a speckled round trip that beats a flat seabed."""
 
 from __future__ import annotations
 
@@ -20,8 +20,15 @@ def _problem(seed: int = 0, shadows: bool = True):
     }
     extent = (0.0, (pings - 1) * 0.2, -10.0, 10.0)
     problem, _ = surface._level(
-        images, rb, 0.2, np.full(pings, 5.0), {"port": 1.0, "starboard": 2.0}, 1,
-        (0.4, 0.4), extent, (math.atan2(5.0, 10.0), math.atan2(5.0, 0.05), 40),
+        images,
+        rb,
+        0.2,
+        np.full(pings, 5.0),
+        {"port": 1.0, "starboard": 2.0},
+        1,
+        (0.4, 0.4),
+        extent,
+        (math.atan2(5.0, 10.0), math.atan2(5.0, 0.05), 40),
     )
     p = surface._start(problem) + rng.normal(0.0, 0.05, problem.size)
     if shadows:  # two ridges across track cast shadows behind them
