@@ -93,8 +93,9 @@ def add_parser(sub: Any) -> None:
     render.add_argument(
         "--seed",
         type=int,
-        default=None,
-        help="seed of the coherent model's scatterer jitter and of the speckle and noise effects",
+        default=0,
+        help="seed of the coherent model's scatterer jitter and of the speckle and noise effects "
+        "(default 0: the same command gives the same image)",
     )
     render.add_argument(
         "--gl",

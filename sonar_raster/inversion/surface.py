@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from functools import partial
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -69,6 +70,9 @@ LINE_PROFILE_SCALE = 0.25
 SUBSAMPLES = 2
 #: Largest number of looks the likelihood trusts (the model's own error on clean images).
 MAX_LOOKS = 30.0
+#: Gauss-Newton steps on the Z knots per level (each followed by L-BFGS on R and Φ); 0: plain
+#: L-BFGS on everything.
+GAUSS_NEWTON_STEPS = 8
 #: A restart of L-BFGS after its line search failed must lower E by this much (E is divided by
 #: looks × bins, so per bin) for another restart.
 RESTART_GAIN = 1e-6
@@ -656,7 +660,10 @@ def fit_surface(
         else:
             params = _transfer(previous, params, problem)
         previous = problem
-        params, value, count = _minimise(problem, params, max_iter)
+        if GAUSS_NEWTON_STEPS:
+            params, value, count = _gauss_newton(problem, params, GAUSS_NEWTON_STEPS, 20)
+        else:
+            params, value, count = _minimise(problem, params, max_iter)
         fit_energies.append(value)
         evaluations.append(count)
         if progress is not None:
@@ -1032,3 +1039,90 @@ def _prior_roots(problem: Problem) -> list[sparse.csr_matrix]:
     known = sparse.diags(np.isfinite(problem.anchor).astype(np.float64))
     roots.append(math.sqrt(2.0 * w) * (known @ sparse.kron(lay.by, lay.nadir)).tocsr())
     return roots
+
+
+def _fisher_z(problem: Problem, p: np.ndarray) -> tuple[sparse.csc_matrix, dict]:
+    """Gauss-Newton (Fisher) matrix of the objective wrt the Z knots, R, Φ and shadows held.
+
+    ``Σ_sides (J B)ᵀ (J B)`` with ``J`` the model's Jacobian wrt per-cell Z weighted by
+    ``sqrt(L / μ²)`` and ``B`` the Z basis, plus the Hessians of the quadratic priors on Z
+    (curvature, relief, anchor); the line-profile prior is applied separately
+    (:func:`_line_hessian`). Also returns the per-side weighted Jacobians and bases.
+    """
+    from .model import jacobian_z
+
+    lay = problem.layout
+    parts = {}
+    h = None
+    for name, data in problem.sides.items():
+        z, r, phi = problem.fields(p, name)
+        shade = soft_shadow(z, lay.geom.x, lay.tau)[0]
+        mu = forward(r * shade, phi, z, lay.geom) + data.floor
+        weight = np.where(data.mask, problem.looks[name] / (mu * mu), 0.0)
+        basis = sparse.kron(lay.by, lay.bx[name], format="csr")
+        jac = (jacobian_z(weight, r * shade, phi, z, lay.geom) @ basis).tocsr()
+        parts[name] = (jac, basis)
+        block = (jac.T @ jac).tocsc()
+        h = block if h is None else h + block
+    assert h is not None
+    for root in _prior_roots(problem):
+        h = h + (root.T @ root).tocsc()
+    return h.tocsc(), parts
+
+
+def _line_hessian(problem: Problem, v: np.ndarray) -> np.ndarray:
+    """The line-profile prior's Hessian times ``v`` (Z knots, flattened)."""
+    lay = problem.layout
+    if problem.flat is None or problem.w_line <= 0:
+        return np.zeros_like(v)
+    zc = v.reshape(problem.kz)
+    at = lay.nadir.toarray().ravel()
+    sigma = LINE_PROFILE_SCALE * float(np.median(lay.altitude)) / lay.z_spacing[1]
+    m = np.mean(zc, axis=0)
+    m = m - float(at @ m)
+    low = ndimage.gaussian_filter1d(m, sigma, mode="constant")
+    g_m = ndimage.gaussian_filter1d(2.0 * problem.w_line * low, sigma, mode="constant")
+    out = np.broadcast_to((g_m - at * float(np.sum(g_m)))[None, :], problem.kz)
+    return np.ascontiguousarray(out).ravel()
+
+
+def _gn_matvec(problem: Problem, lhs: sparse.csc_matrix, v: np.ndarray) -> np.ndarray:
+    return np.asarray(lhs @ v) + _line_hessian(problem, v)
+
+
+def _gauss_newton(problem: Problem, p: np.ndarray, steps: int, inner: int) -> tuple:
+    """Alternate Gauss-Newton steps on the Z knots with L-BFGS on R and Φ.
+
+    Each Z step solves ``(H + H_line + μ D) δ = −g`` by conjugate gradients preconditioned with
+    the sparse LU factors of ``H + μ D`` (D its diagonal; μ shrinks after a good step and grows
+    after a bad one), then backtracks on the full objective, which never rises.
+    """
+    from scipy.sparse.linalg import LinearOperator, cg, splu
+
+    nz = problem.nz
+    free = np.zeros(problem.size, bool)
+    free[nz:] = True
+    value, grad = problem(p)
+    count, damping = 1, 1e-3
+    for _ in range(int(steps)):
+        h, _ = _fisher_z(problem, p)
+        diag = h.diagonal()
+        lhs = (h + sparse.diags(damping * diag + 1e-12 * diag.mean())).tocsc()
+        lu = splu(lhs)
+        op = LinearOperator((nz, nz), matvec=partial(_gn_matvec, problem, lhs))
+        pre = LinearOperator((nz, nz), matvec=lu.solve)
+        step, _ = cg(op, -grad[:nz], M=pre, maxiter=30)
+        accepted = False
+        for t in (1.0, 0.5, 0.25, 0.125):
+            q = p.copy()
+            q[:nz] += t * step
+            trial, g_trial = problem(q)
+            count += 1
+            if trial < value:
+                p, value, grad, accepted = q, trial, g_trial, True
+                break
+        damping = damping * 0.3 if accepted else damping * 10.0
+        p, value, n = _minimise(problem, p, inner, free)
+        count += n
+        grad = problem(p)[1]
+    return p, value, count
