@@ -19,7 +19,8 @@ range, so foreshortening and layover are modelled) times a soft cast-shadow fact
 the ping (the horizon) and ``τ`` one cell's angle on the flat seabed, plus the noise floor of
 the image. Its fit to the data is the L-look Gamma likelihood of speckle,
 ``L Σ (I/μ + log μ)``; its gradient is exact (checked against central differences in
-``tests/inversion/test_surface.py``) and L-BFGS minimises it, coarse to fine.
+``tests/inversion/test_surface.py``). Gauss-Newton steps on the Z knots alternate with L-BFGS
+on R and Φ, coarse to fine (:func:`_gauss_newton`).
 """
 
 from __future__ import annotations
@@ -599,7 +600,8 @@ def fit_surface(
     levels : int
         Resolution levels (each halves pings and bins), coarse to fine.
     max_iter : int
-        Most L-BFGS iterations per level.
+        Most L-BFGS iterations per level where the fit is plain L-BFGS
+        (``GAUSS_NEWTON_STEPS = 0``; by default Gauss-Newton steps on Z, see the module).
     uncertainty : bool
         Estimate the standard deviation of Z per cell (:func:`elevation_std`).
     progress : callable, optional
@@ -637,12 +639,11 @@ def fit_surface(
     params: np.ndarray | None = None
     fit_energies, evaluations = [], []
     factors = [2**k for k in range(levels - 1, -1, -1)]
-    count = next(iter(images.values())).shape[0]
-    bins = next(iter(images.values())).shape[1]
+    n_pings, bins = next(iter(images.values())).shape
     reach = float(ground_axis(alt, range_bin, bins, range_bin)[-1]) + range_bin
     extent = (
         0.0,
-        max((count - 1) * ping_spacing, ping_spacing),
+        max((n_pings - 1) * ping_spacing, ping_spacing),
         -reach if "port" in images else 0.0,
         reach,
     )
