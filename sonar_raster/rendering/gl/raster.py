@@ -26,6 +26,7 @@ from ...scene import Scene
 from ...sonar import Sonar
 from ...trajectory import Segment, Trajectory
 from .context import create_context, release_context
+from .heightfield import Grid, find_grid
 from .programs import specialise
 from .subdivide import subdivide, subdivision_counts
 from .tiles import TileIndex
@@ -62,6 +63,12 @@ class RasterSettings:
     cull : bool
         Draw only the triangles near each draw's swath (default); False draws the whole scene
         every time (the baseline the scale benchmark compares against).
+    heightfield : bool
+        Find each ray's hit on a seabed grid (the faces of ``heightfield_mesh``) by a compute
+        sweep along the fan instead of rasterising the grid's triangles (default), where the
+        draw's fans are level and its pings lie over the grid and above its highest node;
+        the other objects are rasterised as before and the nearer hit is kept. False
+        rasterises the grid too (the baseline the render benchmark compares against).
     """
 
     oversample: float = 2.0
@@ -70,6 +77,7 @@ class RasterSettings:
     max_edge: float | None = None
     near_nadir: float = 1.0
     cull: bool = True
+    heightfield: bool = True
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.oversample) and 0 < self.oversample <= 64):
@@ -169,8 +177,11 @@ class RasterRenderer:
 
     # -- programs ---------------------------------------------------------------------------
     def _program(self, kind: str, labels: bool = False) -> Any:
-        scattering = self._geometry.get("scattering", 1) if kind == "samples" else 1
-        key = f"{kind}:{self.settings.split}:{scattering}:{int(labels)}"
+        scattering = self._geometry.get("scattering", 1) if kind != "accumulate" else 1
+        # Pass 1 does not depend on the split: one program, so the scene's vertex array (made
+        # with it, and drawing with it) never runs a program whose uniforms another split set.
+        split = "any" if kind == "samples" else self.settings.split
+        key = f"{kind}:{split}:{scattering}:{int(labels)}"
         if key not in self._programs:
             if kind == "samples":
                 d = {"SCATTERING": scattering, "LABELS": int(labels)}
@@ -180,7 +191,13 @@ class RasterRenderer:
                     fragment_shader=specialise("ping_samples.glsl", "FRAGMENT_SHADER", d),
                 )
             else:
-                d = {"SPLIT": _SPLITS.index(self.settings.split), "LABELS": int(labels)}
+                d = {
+                    "SPLIT": _SPLITS.index(self.settings.split),
+                    "LABELS": int(labels),
+                    "SWEEP": int(kind == "sweep"),
+                    "SWEEP_GROUP": _SWEEP_GROUP,
+                    "SCATTERING": scattering,
+                }
                 self._programs[key] = self.ctx.compute_shader(
                     specialise("range_accumulate.glsl", "COMPUTE_SHADER", d)
                 )
@@ -250,6 +267,10 @@ class RasterRenderer:
         for obj in self._geometry.values():
             if hasattr(obj, "release"):
                 obj.release()
+            elif isinstance(obj, dict):  # the objects' geometry of sweeping draws
+                for inner in obj.values():
+                    if hasattr(inner, "release"):
+                        inner.release()
         self._geometry.clear()
         self._scene_key = None
         self._scene = None
@@ -296,9 +317,21 @@ class RasterRenderer:
             "vbo": self.ctx.buffer(vertices),
             "n_faces": len(faces),
             "r_max": float(refl.max(initial=0.0)),
+            # Height range of the vertices (local metres): bounds what tilted fans can see.
+            "z_span": _z_span(vertices),
+            **_grid_entries(scene, source, len(faces)),
         }
         self._scene_key = key
         self._scene = scene
+
+    def _whole_objects(self) -> dict[str, Any]:
+        """The uploaded faces outside the seabed grid, kept for every draw that sweeps."""
+        geo = self._geometry
+        if "objects" not in geo:
+            whole = self._subset(np.flatnonzero(~geo["grid_mask"]))
+            whole["subset"] = False  # kept with the scene, released with it
+            geo["objects"] = whole
+        return geo["objects"]
 
     def _whole_scene(self) -> dict[str, Any]:
         """The uploaded geometry with its whole-scene index and reflectivity buffers."""
@@ -400,38 +433,13 @@ class RasterRenderer:
         max_rows = (
             max(1, min(MAX_TEXTURE, MAX_TEXELS // self._columns_total_estimate(sonar))) // along
         )
-        z_top = float(scene.bounds[1, 2])
         draws = []
         # Fans of one draw share an orientation: their spread moves far-range points along
         # track by max_range x angle; keep that under half a ping (0.05 to 0.5 degrees).
         angle = min(max(0.5 * trajectory.typical_spacing / sonar.max_range, 8.7e-4), 8.7e-3)
         for seg in trajectory.segments(tol, max_count=max(1, max_rows), angle_tolerance=angle):
             roll = float(np.mean(trajectory.roll[seg.first : seg.first + seg.count]))
-            altitude = float(seg.origin[2] - scene.ground_z)
-            # Nothing above z_top within the image's reach (max range plus the largest spread
-            # of a sample, 8 bins) lies at a smaller depression than this.
-            reach = sonar.max_range + 8.0 * sonar.range_bin
-            alpha_top = math.asin(min(1.0, max(-1.0, (float(seg.origin[2]) - z_top) / reach)))
-            warp = Warp.make(altitude, sonar.max_range, alpha_top, self.settings.near_nadir)
-            stationary = seg.spacing == 0.0
-            for side in sonar.sides:
-                sign = 1.0 if side == "starboard" else -1.0
-                axis_side = sign * seg.starboard
-                det = float(np.linalg.det(np.stack([seg.fore, axis_side, seg.up])))
-                motion = np.array([seg.along @ seg.fore, seg.along @ axis_side, seg.along @ seg.up])
-                draws.append(
-                    _Draw(
-                        segment=seg,
-                        side=side,
-                        axis_side=axis_side,
-                        motion=motion,
-                        frame_sign=det,
-                        warp=warp,
-                        beam_axis=sonar.tilt + sign * roll,
-                        rows=1 if stationary else seg.count,
-                        spacing=seg.width if stationary else seg.spacing,
-                    )
-                )
+            draws += self._plan_segment(scene, sonar, seg, roll)
         return draws
 
     def _columns_total_estimate(self, sonar: Sonar) -> int:
@@ -517,7 +525,8 @@ class RasterRenderer:
             max_edge = self.settings.max_edge or 20.0 * sonar.range_bin
             self._upload(scene, origin, max_edge)
             plan = self._plan(scene, sonar, trajectory)
-            if self.settings.cull:  # built now, before the sample targets take their memory
+            if self.settings.cull and self._rasters(plan, sonar):
+                # built now, before the sample targets take their memory
                 self._tile_index(self._reach(sonar))
         for first in range(0, trajectory.n_pings, int(chunk_pings)):
             last = min(trajectory.n_pings, first + int(chunk_pings))
@@ -548,9 +557,16 @@ class RasterRenderer:
         first_ping = pings[0]
         n_pings, n_bins = pings[1] - pings[0], sonar.n_bins
         counters = {"draws": 0, "draws_skipped_empty": 0, "triangles_drawn": 0}
-        self._framebuffer(
-            max(t[1] for tiles in tables for t in tiles),
-            max(d.rows for d in draws) * self.settings.along_samples,
+        swept = 0
+        sweeps = [self._sweeps(d, sonar) for d in draws]
+        raster = [
+            (tiles, d)
+            for d, tiles, sweep in zip(draws, tables, sweeps, strict=True)
+            if not sweep or self._has_objects()
+        ]
+        self._framebuffer(  # (1 texel when every draw sweeps a grid that stands alone)
+            max((t[1] for tiles, _ in raster for t in tiles), default=1),
+            max((d.rows for _, d in raster), default=1) * self.settings.along_samples,
             labels,
         )
         cells = {side: self.ctx.buffer(reserve=n_pings * n_bins * 8) for side in sonar.sides}
@@ -560,21 +576,23 @@ class RasterRenderer:
         for buf in cells.values():
             buf.clear()
         try:
-            items = list(zip(draws, tables, strict=True))
+            items = list(zip(draws, tables, sweeps, strict=True))
             if progress:
                 from tqdm import tqdm
 
                 items = tqdm(items, desc="rendering", unit="draw", disable=None, leave=False)
-            for draw, table in items:
-                geometry = self._geometry_for(draw, sonar, origin)
+            for draw, table, sweep in items:
+                geometry = self._geometry_for(draw, sonar, origin, objects_only=sweep)
                 try:
-                    if geometry["n_faces"] == 0:
+                    if geometry["n_faces"] == 0 and not sweep:
                         counters["draws_skipped_empty"] += 1
                         continue
                     self._draw(
-                        draw, table, origin, sonar, scale, cells, geometry, labels, first_ping
-                    )
+                        draw, table, origin, sonar, scale, cells, geometry, labels, first_ping,
+                        sweep,
+                    )  # fmt: skip
                     counters["draws"] += 1
+                    swept += int(sweep)
                     counters["triangles_drawn"] += int(geometry["n_faces"])
                 finally:
                     self._release_subset(geometry)
@@ -596,6 +614,8 @@ class RasterRenderer:
             "triangles": int(self._geometry["n_faces"]),
             "first_ping": first_ping,
             "counters": counters,
+            # draws whose seabed grid was swept instead of rasterised (RasterSettings.heightfield)
+            "grid_sweeps": swept,
         }
         if labels:
             meta["label_names"] = ["(no return)", *scene.names]
@@ -640,14 +660,39 @@ class RasterRenderer:
         geometry: dict[str, Any],
         labels: bool,
         ping_base: int,
+        sweep: bool = False,
+    ) -> None:
+        comp = self._program("sweep" if sweep else "accumulate", labels)
+        buffers = self._sweep_inputs(comp, draw, tiles, origin, sonar, labels) if sweep else ()
+        try:
+            self._draw_tiles(
+                draw, tiles, origin, sonar, scale, cells, geometry, labels, ping_base, sweep
+            )
+        finally:
+            for buf in buffers:
+                buf.release()
+
+    def _draw_tiles(
+        self,
+        draw: _Draw,
+        tiles: list,
+        origin: np.ndarray,
+        sonar: Sonar,
+        scale: float,
+        cells: dict[str, Any],
+        geometry: dict[str, Any],
+        labels: bool,
+        ping_base: int,
+        sweep: bool,
     ) -> None:
         ctx = self.ctx
         seg = draw.segment
         along = self.settings.along_samples
         height = draw.rows * along
         prog = self._program("samples", labels)
-        comp = self._program("accumulate", labels)
+        comp = self._program("sweep" if sweep else "accumulate", labels)
         vao = self._vao(geometry, labels)
+        has_raster = int(geometry["n_faces"] > 0)
         far = 1.5 * sonar.max_range
         rho_lo_all, rho_hi_all = draw.warp.rho_range
         uniforms = {
@@ -693,20 +738,8 @@ class RasterRenderer:
             prog["rho_hi"].value = rho_lo_all + (first + count) * d_rho
             col_tex = ctx.texture((count, 1), 4, table.tobytes(), dtype="f4")
             try:
-                fbo.use()
-                fbo.viewport = (0, 0, count, height)
-                # Clear the depth only: pass 2 skips texels whose depth stayed at 1, so stale
-                # colour from an earlier draw is never read (and the colour clear is saved).
-                n_targets = len(fbo.color_attachments)
-                fbo.color_mask = _masks(False, n_targets)
-                fbo.use()  # moderngl applies the colour mask when the framebuffer is bound
-                fbo.clear(depth=1.0, viewport=(0, 0, count, height))
-                fbo.color_mask = _masks(True, n_targets)
-                fbo.use()
-                ctx.enable(ctx.DEPTH_TEST)
-                col_tex.use(location=1)
-                prog["columns"].value = 1
-                vao.render(mode=ctx.TRIANGLES)
+                if has_raster:
+                    self._raster_tile(fbo, count, height, col_tex, prog, vao)
                 targets["color"].use(location=0)
                 targets["depth"].use(location=2)
                 cells[draw.side].bind_to_storage_buffer(1)
@@ -718,10 +751,134 @@ class RasterRenderer:
                 comp["n_bins"].value = sonar.n_bins
                 comp["inv_bin"].value = 1.0 / sonar.range_bin
                 comp["scale"].value = scale
-                comp.run(group_x=(count + 63) // 64, group_y=(height + 3) // 4)
+                if sweep:
+                    comp["col_first"].value = first
+                    comp["has_raster"].value = has_raster
+                    chunk = self._sweep_chunk(draw, sonar)
+                    comp["chunk"].value = chunk
+                    for begin in range(0, count, chunk):
+                        comp["col_begin"].value = begin
+                        comp.run(group_x=-(-height // _SWEEP_GROUP))
+                        ctx.memory_barrier()
+                else:
+                    comp.run(group_x=(count + 63) // 64, group_y=(height + 3) // 4)
                 ctx.memory_barrier()
             finally:
                 col_tex.release()
+
+    def _raster_tile(
+        self, fbo: Any, count: int, height: int, col_tex: Any, prog: Any, vao: Any
+    ) -> None:
+        """Pass 1 of one column tile into the sample targets (depth cleared first)."""
+        ctx = self.ctx
+        fbo.use()
+        fbo.viewport = (0, 0, count, height)
+        # Clear the depth only: pass 2 skips texels whose depth stayed at 1, so stale
+        # colour from an earlier draw is never read (and the colour clear is saved).
+        n_targets = len(fbo.color_attachments)
+        fbo.color_mask = _masks(False, n_targets)
+        fbo.use()  # moderngl applies the colour mask when the framebuffer is bound
+        fbo.clear(depth=1.0, viewport=(0, 0, count, height))
+        fbo.color_mask = _masks(True, n_targets)
+        fbo.use()
+        ctx.enable(ctx.DEPTH_TEST)
+        col_tex.use(location=1)
+        prog["columns"].value = 1
+        vao.render(mode=ctx.TRIANGLES)
+
+    # -- the heightfield sweep --------------------------------------------------------------
+    def _has_objects(self) -> bool:
+        """Whether the uploaded scene has faces outside its seabed grid (or no grid)."""
+        mask = self._geometry.get("grid_mask")
+        return mask is None or not bool(mask.all())
+
+    def _rasters(self, draws: list[_Draw], sonar: Sonar) -> bool:
+        """Whether any of these draws rasterises triangles."""
+        return self._has_objects() or not all(self._sweeps(d, sonar) for d in draws)
+
+    def _sweeps(self, draw: _Draw, sonar: Sonar) -> bool:
+        """Whether the seabed grid's hits of this draw come from the sweep.
+
+        The fans must be level (their up axis vertical: the trace of a fan on the grid is a
+        straight line), and every row's origin must lie over the grid, above its highest node.
+        """
+        grid: Grid | None = self._geometry.get("grid")
+        if grid is None or not self.settings.heightfield:
+            return False
+        seg = draw.segment
+        if abs(float(seg.fore[2])) > 1e-12 or abs(float(seg.up[2]) - 1.0) > 1e-12:
+            return False
+        along = self.settings.along_samples
+        rows = draw.rows * along
+        ends = np.array([((r + 0.5) / along - 0.5) * draw.spacing for r in (0, rows - 1)])
+        points = seg.origin[None, :] + ends[:, None] * seg.along[None, :]
+        if not (grid.contains(points[:, :2]) and bool(np.all(points[:, 2] > grid.z_max))):
+            return False
+        # a walk that alone would use most of a dispatch's loop budget: rasterise instead
+        return self._walk_cells(draw, sonar) < _LOOP_BUDGET // 2
+
+    def _walk_cells(self, draw: _Draw, sonar: Sonar) -> int:
+        """Most grid cells one row's walk can cross before it stops (``s_stop``), plus slack."""
+        grid: Grid = self._geometry["grid"]
+        side = draw.axis_side
+        reach = sonar.max_range + 16.0 * sonar.range_bin
+        e = grid.inverse @ side[:2]  # grid units per metre along the trace
+        return int(math.ceil(reach * (abs(float(e[0])) + abs(float(e[1]))))) + 4
+
+    def _sweep_chunk(self, draw: _Draw, sonar: Sonar) -> int:
+        """Columns per sweep dispatch that keep an invocation under llvmpipe's loop budget."""
+        spare = _LOOP_BUDGET - 1000 - self._walk_cells(draw, sonar)
+        return max(64, spare // _ITERATIONS_PER_COLUMN)
+
+    def _sweep_inputs(
+        self, comp: Any, draw: _Draw, tiles: list, origin: np.ndarray, sonar: Sonar, labels: bool
+    ) -> Any:
+        """Bind the grid, the draw's column table and the sweep's uniforms.
+
+        Returns the column table's and the walk state's buffers, for the caller to release
+        after the draw.
+        """
+        geo = self._geometry
+        grid: Grid = geo["grid"]
+        seg = draw.segment
+        if "grid_faces" not in geo:
+            ids = np.arange(grid.first_face, grid.first_face + grid.n_faces)
+            law = None if self._scene is None or self._scene.law is None else self._scene.law
+            refl = self._scene.reflectivity if self._scene is not None else np.zeros(0)
+            geo["grid_faces"] = self.ctx.buffer(_face_data(refl, law, ids))
+        geo["vbo"].bind_to_storage_buffer(4)
+        geo["grid_faces"].bind_to_storage_buffer(5)
+        trig = self.ctx.buffer(_column_trig(tiles))
+        trig.bind_to_storage_buffer(6)
+        rows = draw.rows * self.settings.along_samples
+        state = self.ctx.buffer(reserve=rows * 32)
+        state.bind_to_storage_buffer(7)
+        local = np.array([grid.x0, grid.y0]) - origin[:2]
+        uniforms = {
+            "grid_n": (grid.nx, grid.ny),
+            "grid_v0": grid.first_vertex,
+            "grid_origin": tuple(local.astype("f4")),
+            "grid_inverse": tuple(grid.inverse.T.reshape(-1)),  # column-major mat2
+            "grid_winding": float(grid.winding),
+            "seg_origin": tuple((seg.origin - origin).astype("f4")),
+            "axis_along": tuple(seg.fore),
+            "axis_side": tuple(draw.axis_side),
+            "axis_up": tuple(seg.up),
+            "motion": tuple(draw.motion),
+            "travel": tuple(seg.along),
+            "frame_sign": draw.frame_sign,
+            "spacing": draw.spacing,
+            "row_width": seg.width / self.settings.along_samples,
+            "far_range": 1.5 * sonar.max_range,
+            "s_stop": sonar.max_range + 16.0 * sonar.range_bin,
+            "grid_label": grid.object_id + 1,
+        }
+        for name, value in uniforms.items():
+            if name in comp:
+                comp[name].value = value
+        if "laws" in geo:
+            comp["laws"].value = _LAW_UNIT
+        return trig, state
 
     # -- range maps (visibility for the CPU models) ----------------------------------------
     def fan_ranges(
@@ -798,12 +955,14 @@ class RasterRenderer:
         return np.concatenate(out, axis=1), draw.warp, tables[0][2]
 
     def _plan_segment(self, scene: Scene, sonar: Sonar, seg: Segment, roll: float) -> list[_Draw]:
-        """The draws (one per side) of one segment with its own rows (``seg.count``)."""
-        z_top = float(scene.bounds[1, 2])
+        """The draws (one per side) of one segment; a stationary one renders a single row."""
         altitude = float(seg.origin[2] - scene.ground_z)
+        # Nothing at or below the scene's top within the image's reach (max range plus the
+        # largest spread of a sample, 8 bins) lies at a smaller depression than this.
         reach = sonar.max_range + 8.0 * sonar.range_bin
-        alpha_top = math.asin(min(1.0, max(-1.0, (float(seg.origin[2]) - z_top) / reach)))
+        alpha_top = _alpha_top(seg, float(scene.bounds[1, 2]), reach)
         warp = Warp.make(altitude, sonar.max_range, alpha_top, self.settings.near_nadir)
+        stationary = seg.spacing == 0.0
         draws = []
         for side in sonar.sides:
             sign = 1.0 if side == "starboard" else -1.0
@@ -812,15 +971,15 @@ class RasterRenderer:
             motion = np.array([seg.along @ seg.fore, seg.along @ axis_side, seg.along @ seg.up])
             draws.append(
                 _Draw(
-                    seg,
-                    side,
-                    axis_side,
-                    motion,
-                    det,
-                    warp,
-                    sonar.tilt + sign * roll,
-                    seg.count,
-                    seg.spacing,
+                    segment=seg,
+                    side=side,
+                    axis_side=axis_side,
+                    motion=motion,
+                    frame_sign=det,
+                    warp=warp,
+                    beam_axis=sonar.tilt + sign * roll,
+                    rows=1 if stationary else seg.count,
+                    spacing=seg.width if stationary else seg.spacing,
                 )
             )
         return draws
@@ -886,49 +1045,59 @@ class RasterRenderer:
         return np.where(depth < 1.0, color, np.float32(np.inf)).astype(np.float32)
 
     # -- culling ----------------------------------------------------------------------------
-    def _geometry_for(self, draw: _Draw, sonar: Sonar, origin: np.ndarray) -> dict[str, Any]:
+    def _geometry_for(
+        self, draw: _Draw, sonar: Sonar, origin: np.ndarray, objects_only: bool = False
+    ) -> dict[str, Any]:
         """The uploaded scene, or only its triangles that can reach this draw's image.
 
-        Candidates come from a tile index over the plane (the bounding box of the draw's swath
-        rectangle); a candidate is kept when one of its corners lies within the subdivision
-        edge length of the segment's along-track window, of the maximum range from the track,
-        and of the draw's side. When half the scene or more is kept, the whole scene is drawn
-        and nothing is uploaded.
+        With ``objects_only`` the seabed grid's faces are left out (the sweep finds their hits).
+
+        A triangle can reach the image when one of its points lies in the draw's fan
+        coordinates ``(u, s, v)`` (``Segment.shear``: travel, to the side, up in the fan plane;
+        every attitude the fans have, crab and pitch included, is in that map) within the
+        along-track window of the rows, on the draw's side (``s >= 0``) and within the reach
+        ``hypot(s, v)``. Every point of a triangle lies within ``L / sqrt(3)`` of one of its
+        corners (``L`` its longest edge: the circumradius of an acute triangle, at most half
+        the longest edge otherwise), so within ``‖shear‖ L / sqrt(3)`` in fan coordinates, and
+        a corner test widened by that margin keeps every such triangle. Candidates come from
+        a tile index over the plane: the horizontal bounding box of the fan-coordinate box
+        (its ``v`` bounded by the scene's heights, :func:`_swath_box`) widened by ``L``. When
+        half the scene or more is kept, the whole scene is drawn and nothing is uploaded.
         """
         geo = self._geometry
+        if objects_only and not self._has_objects():
+            return self._whole_objects()  # empty: the grid is the whole scene
         if not self.settings.cull:
-            return self._whole_scene()
+            return self._whole_objects() if objects_only else self._whole_scene()
         seg = draw.segment
-        # Corner tests widened by the longest edge, so a triangle whose corners are all outside
-        # but which crosses the window is still kept.
-        margin = geo["max_edge"]
+        shear = seg.shear  # (travel, starboard, up) of a point relative to the segment origin
+        margin = geo["max_edge"] * float(np.linalg.norm(shear, 2)) / math.sqrt(3.0)
         t_lo = -0.5 * seg.width - margin
         t_hi = (seg.count - 1) * seg.spacing + 0.5 * seg.width + margin
-        reach = self._reach(sonar)
+        reach = self._reach(sonar) - geo["max_edge"] + margin
         start = seg.origin - origin
-        corners = np.array(
-            [start + a * seg.along + b * draw.axis_side for a in (t_lo, t_hi) for b in (0, reach)]
-        )
-        index = self._tile_index(reach)
-        candidates = index.query(
-            corners[:, 0].min(),
-            corners[:, 0].max(),
-            corners[:, 1].min(),
-            corners[:, 1].max(),
-            margin,
-        )
+        box = _swath_box(seg, draw.axis_side, start, (t_lo, t_hi), margin, reach, geo["z_span"])
+        index = self._tile_index(self._reach(sonar))
+        candidates = index.query(*box, geo["max_edge"])
+        if objects_only:
+            candidates = candidates[~geo["grid_mask"][candidates]]
         if len(candidates) > 0.5 * geo["n_faces"]:
-            return self._whole_scene()  # most of the scene is near: the exact test cannot pay
+            # most of the scene is near: the exact test cannot pay
+            return self._whole_objects() if objects_only else self._whole_scene()
         f = geo["faces_cpu"][candidates]
         rel = geo["vertices"][f.reshape(-1)] - start
-        shear = seg.shear  # (travel, starboard, up) of each corner relative to its fan
         t = _dot(rel, shear[0])
         side = _dot(rel, shear[1] * float(draw.axis_side @ seg.starboard))
         near = (t >= t_lo) & (t <= t_hi) & (side >= -margin)
         near &= np.hypot(side, _dot(rel, shear[2])) <= reach
         ids = candidates[near.reshape(-1, 3).any(axis=1)]
         if len(ids) > 0.5 * geo["n_faces"]:
-            return self._whole_scene()
+            return self._whole_objects() if objects_only else self._whole_scene()
+        return self._subset(ids)
+
+    def _subset(self, ids: np.ndarray) -> dict[str, Any]:
+        """Index and face buffers of the uploaded faces ``ids`` (released after the draw)."""
+        geo = self._geometry
         faces = geo["faces_cpu"][ids].astype("u4")
         refl = _face_data(geo["refl_cpu"], geo["law_cpu"], ids)
         ibo = self.ctx.buffer(faces if len(ids) else b"\0" * 12)
@@ -1012,6 +1181,13 @@ def _local_float32(vertices: np.ndarray, origin: np.ndarray) -> np.ndarray:
     return out
 
 
+def _z_span(vertices: np.ndarray) -> tuple[float, float]:
+    """Lowest and highest vertex height, metres ((0, 0) for no vertices)."""
+    if len(vertices) == 0:
+        return 0.0, 0.0
+    return float(vertices[:, 2].min()), float(vertices[:, 2].max())
+
+
 def _masks(write: bool, n_targets: int) -> Any:
     """A colour mask for every target (moderngl wants a plain tuple for a single target)."""
     one = (write,) * 4
@@ -1058,6 +1234,14 @@ def render_raster(
         return renderer.render(scene, sonar, trajectory, progress=progress, labels=labels)
 
 
+#: Rows per workgroup of the sweep (``local_size_x`` of range_accumulate.glsl with SWEEP 1).
+_SWEEP_GROUP = 8
+#: Loop iterations llvmpipe allows one shader invocation in all (gallivm's loop limiter); a
+#: sweep dispatch must stay below it.
+_LOOP_BUDGET = 65535
+#: Most loop iterations one column of the sweep costs: the walk's column loop and the
+#: footprint loop over at most MAX_SPREAD (16) bins.
+_ITERATIONS_PER_COLUMN = 18
 #: Texture unit of the per-material law table (units 0-2 hold the pass targets and columns).
 _LAW_UNIT = 5
 
@@ -1079,3 +1263,76 @@ def _face_data(refl: np.ndarray, law: np.ndarray | None, ids: np.ndarray | None)
     if law is not None:
         out[:, 1] = law if ids is None else law[ids]
     return out
+
+
+def _alpha_top(seg: Segment, z_top: float, reach: float) -> float:
+    """Smallest depression (radians) of a point below ``z_top`` and ``reach`` from a ping.
+
+    A point at height z in the fan of the ping at travel u has the fan coordinate
+    ``v = (z - z_ping(u)) / up_z`` (``up_z`` = cos pitch) and a depression whose sine is
+    ``-v / r``, so the segment's lowest ping (a descending track's last) and the pitch both
+    set the bound. Where ``z_top`` is above that ping, points above it nearer than ``reach``
+    are steeper than the bound (the columns do not reach them; as before).
+    """
+    lo = -0.5 * seg.width
+    hi = (seg.count - 1) * seg.spacing + 0.5 * seg.width
+    z_ping = float(seg.origin[2]) + min(lo * float(seg.along[2]), hi * float(seg.along[2]))
+    return math.asin(min(1.0, max(-1.0, (z_ping - z_top) / (float(seg.up[2]) * reach))))
+
+
+def _swath_box(
+    seg: Segment,
+    axis_side: np.ndarray,
+    start: np.ndarray,
+    t_range: tuple[float, float],
+    margin: float,
+    reach: float,
+    z_span: tuple[float, float],
+) -> tuple[float, float, float, float]:
+    """Horizontal bounding box ``(xmin, xmax, ymin, ymax)`` of the points a draw's fans can see.
+
+    The points are ``start + u along + s axis_side + v up`` (the inverse of ``Segment.shear``)
+    with travel ``u`` in ``t_range``, side ``s`` from ``-margin`` to ``reach`` and ``v`` within
+    ``±reach``, narrowed to the heights ``z_span`` of the scene: a pitched fan's ``up`` leans
+    along track, so the seabed it sees lies ahead of or behind the ping, and a climbing track
+    changes its height with ``u``. The box is the image of a box under an affine map, so its
+    eight corners bound it.
+    """
+    up_z = float(seg.up[2])  # cos(pitch) > 0: the trajectory refuses pitch beyond 80 degrees
+    v = [(z - float(start[2]) - u * float(seg.along[2])) / up_z for z in z_span for u in t_range]
+    v_lo, v_hi = max(min(v), -reach), min(max(v), reach)
+    v_hi = max(v_hi, v_lo)
+    corners = np.array(
+        [
+            start + u * seg.along + s * axis_side + w * seg.up
+            for u in t_range
+            for s in (-margin, reach)
+            for w in (v_lo, v_hi)
+        ]
+    )
+    lo, hi = corners.min(axis=0), corners.max(axis=0)
+    return float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1])
+
+
+def _grid_entries(scene: Scene, source: np.ndarray | None, n_faces: int) -> dict[str, Any]:
+    """The scene's seabed grid and a mask of the uploaded faces that belong to it."""
+    grid = find_grid(scene)
+    if grid is None:
+        return {"grid": None, "grid_mask": None}
+    if source is None:
+        mask = np.zeros(n_faces, dtype=bool)
+        mask[grid.faces] = True
+    else:
+        mask = (source >= grid.first_face) & (source < grid.first_face + grid.n_faces)
+    return {"grid": grid, "grid_mask": mask}
+
+
+def _column_trig(tiles: list) -> np.ndarray:
+    """The sweep's column table of a draw (all its tiles), float32, shape (columns, 4).
+
+    Per column: (cos α, sin α, Φ dα, dα / 2).
+    """
+    table = np.concatenate([t[3] for t in tiles]).astype(np.float64)
+    alpha = table[:, 0]
+    out = np.stack([np.cos(alpha), np.sin(alpha), table[:, 1], table[:, 2]], axis=1)
+    return out.astype("f4")
