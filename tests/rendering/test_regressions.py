@@ -213,3 +213,33 @@ def test_box_top_three_bins_under_a_single_ping(gl):
         gl.settings = RasterSettings()
     err = np.abs(image.sides["port"] - ref.sides["port"]).sum() / ref.sides["port"].sum()
     assert err <= 0.05, f"relative L1 {err:.4f}"
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason=(
+        "a bright box (R 1 on a 0.125 seabed) straight under a two-ping track with a uniform "
+        "beam: relative L1 5.09 % against RENDERERS_TOL = 5 %, and 5.1-5.3 % with its top 4 to 7 "
+        "range bins below the sonar, so not a nadir-clearance effect; drawn by test_stress.py in "
+        "a full CI run, which now keeps objects off the track's nadir until this is understood"
+    ),
+)
+def test_bright_box_under_the_track(gl):
+    seabed = rect_seabed(-12.37460659, 12.0, -12.92718385, 12.0, z=0.0, reflectivity=0.125)
+    box = box_from_bounds([[-2.0, -1.0, -0.5], [2.0, 1.0, 2.0]], reflectivity=1.0)
+    scene = build_scene([seabed, box])
+    sonar = Sonar(max_range=10.0, range_bin=0.5, beam=BeamPattern.uniform(), sides=("port",))
+    traj = Trajectory(
+        np.array([[0.0, 0.0, 4.0], [-0.37460659, -0.92718385, 4.0]]),
+        np.array([3.52556509, 3.52556509]),
+        np.array([0.00478086, -0.00803596]),
+        np.zeros(2),
+    )
+    ref = render_reference(scene, sonar, traj)
+    gl.settings = RasterSettings(oversample=4.0, along_samples=16)
+    try:
+        image = gl.render(scene, sonar, traj)
+    finally:
+        gl.settings = RasterSettings()
+    err = np.abs(image.sides["port"] - ref.sides["port"]).sum() / ref.sides["port"].sum()
+    assert err <= 0.05, f"relative L1 {err:.4f}"
