@@ -138,14 +138,11 @@ class SideData:
         Bins the likelihood uses.
     floor : float
         Noise floor added to the model, same units as ``image``.
-    sign : float
-        +1 for starboard (X = x), −1 for port (X = −x).
     """
 
     image: np.ndarray
     mask: np.ndarray
     floor: float
-    sign: float
 
 
 @dataclass
@@ -392,19 +389,11 @@ class Problem:
             d = zc - self.flat
             total += w * float(np.sum(d * d))
             g_zc += 2.0 * w * d
-        # the line-averaged across-track profile is held at the flat seabed: Φ, shared along the
-        # line, absorbs any bend that every ping shares, so the image cannot fix it
+        # the line-averaged across-track profile is held at the flat seabed (_line_profile)
         if self.flat is not None and self.w_line > 0:
-            # relative to the profile at nadir, whose level the first return's range fixes
-            # and only its broad part (a smooth Φ absorbs only a broad bend)
-            at = lay.nadir.toarray().ravel()
-            m = np.mean(zc - self.flat, axis=0)
-            m = m - float(at @ m)
-            sigma = LINE_PROFILE_SCALE * float(np.median(lay.altitude)) / lay.z_spacing[1]
-            low = ndimage.gaussian_filter1d(m, sigma, mode="constant")
-            total += self.w_line * zc.shape[0] * float(np.sum(low * low))
-            g_m = ndimage.gaussian_filter1d(2.0 * self.w_line * low, sigma, mode="constant")
-            g_zc += (g_m - at * float(np.sum(g_m)))[None, :]
+            value, g = _line_profile(self, zc - self.flat)
+            total += value
+            g_zc += g
         # first-return anchor at nadir
         known = np.isfinite(self.anchor)
         if known.any():
@@ -745,7 +734,7 @@ def _level(
         level = float(np.mean(lit)) if lit.size else 1.0
         floor = float(np.mean(image[water])) if water.any() else 0.0
         floor = max(floor, 1e-3 * level)
-        sides[name] = SideData(image, mask, floor, 1.0 if name == "starboard" else -1.0)
+        sides[name] = SideData(image, mask, floor)
         scaled_looks[name] = min(looks[name] * f * f, MAX_LOOKS)
     return Problem(sides, layout, scaled_looks, h, ANCHOR_BINS * range_bin), x
 
@@ -984,25 +973,12 @@ def elevation_std(problem: Problem, p: np.ndarray, samples: int = 32, seed: int 
     """
     from scipy.sparse.linalg import splu
 
-    from .model import jacobian_z
-
     lay = problem.layout
     rng = np.random.default_rng(seed)
-    bases, blocks = {}, []
-    for name, data in problem.sides.items():
-        z, r, phi = problem.fields(p, name)
-        shade = soft_shadow(z, lay.geom.x, lay.tau)[0]
-        mu = forward(r * shade, phi, z, lay.geom) + data.floor
-        weight = np.where(data.mask, problem.looks[name] / (mu * mu), 0.0)
-        basis = sparse.kron(lay.by, lay.bx[name], format="csr")
-        bases[name] = basis
-        blocks.append(jacobian_z(weight, r * shade, phi, z, lay.geom) @ basis)
-    jac = sparse.vstack(blocks, format="csr")
+    h, parts = _fisher_z(problem, p)
+    jac = sparse.vstack([j for j, _ in parts.values()], format="csr")
     roots = _prior_roots(problem)
-    h = (jac.T @ jac).tocsc()
-    for root in roots:
-        h = h + (root.T @ root).tocsc()
-    lu = splu(h.tocsc())
+    lu = splu(h)
     draws = []
     for _ in range(samples):
         rhs = jac.T @ rng.standard_normal(jac.shape[0])
@@ -1013,7 +989,7 @@ def elevation_std(problem: Problem, p: np.ndarray, samples: int = 32, seed: int 
     shape = (lay.by.shape[0], lay.geom.x.size)
     return {
         name: np.std(np.asarray(basis @ knots), axis=1, ddof=1).reshape(shape)
-        for name, basis in bases.items()
+        for name, (_, basis) in parts.items()
     }
 
 
@@ -1048,7 +1024,7 @@ def _fisher_z(problem: Problem, p: np.ndarray) -> tuple[sparse.csc_matrix, dict]
     ``Σ_sides (J B)ᵀ (J B)`` with ``J`` the model's Jacobian wrt per-cell Z weighted by
     ``sqrt(L / μ²)`` and ``B`` the Z basis, plus the Hessians of the quadratic priors on Z
     (curvature, relief, anchor); the line-profile prior is applied separately
-    (:func:`_line_hessian`). Also returns the per-side weighted Jacobians and bases.
+    (:func:`_line_profile`). Also returns the per-side weighted Jacobians and bases.
     """
     from .model import jacobian_z
 
@@ -1071,24 +1047,32 @@ def _fisher_z(problem: Problem, p: np.ndarray) -> tuple[sparse.csc_matrix, dict]
     return h.tocsc(), parts
 
 
-def _line_hessian(problem: Problem, v: np.ndarray) -> np.ndarray:
-    """The line-profile prior's Hessian times ``v`` (Z knots, flattened)."""
+def _line_profile(problem: Problem, dev: np.ndarray) -> tuple[float, np.ndarray]:
+    """The line-profile prior on the Z knots' deviation ``dev`` from the flat seabed.
+
+    Φ, shared along the line, absorbs any bend of Z that every ping shares, so the image
+    cannot fix it: the across-track profile of ``dev`` averaged along the line, taken relative
+    to its value at nadir (whose level the first return's range fixes) and low-passed (a smooth
+    Φ absorbs only a broad bend), is held at zero. Quadratic in ``dev``, so its gradient at
+    ``v`` is also its Hessian times ``v``. Returns the value and the gradient, shaped as ``dev``.
+    """
     lay = problem.layout
-    if problem.flat is None or problem.w_line <= 0:
-        return np.zeros_like(v)
-    zc = v.reshape(problem.kz)
     at = lay.nadir.toarray().ravel()
-    sigma = LINE_PROFILE_SCALE * float(np.median(lay.altitude)) / lay.z_spacing[1]
-    m = np.mean(zc, axis=0)
+    m = np.mean(dev, axis=0)
     m = m - float(at @ m)
+    sigma = LINE_PROFILE_SCALE * float(np.median(lay.altitude)) / lay.z_spacing[1]
     low = ndimage.gaussian_filter1d(m, sigma, mode="constant")
     g_m = ndimage.gaussian_filter1d(2.0 * problem.w_line * low, sigma, mode="constant")
-    out = np.broadcast_to((g_m - at * float(np.sum(g_m)))[None, :], problem.kz)
-    return np.ascontiguousarray(out).ravel()
+    value = problem.w_line * dev.shape[0] * float(np.sum(low * low))
+    grad = np.broadcast_to((g_m - at * float(np.sum(g_m)))[None, :], dev.shape)
+    return value, np.ascontiguousarray(grad)
 
 
 def _gn_matvec(problem: Problem, lhs: sparse.csc_matrix, v: np.ndarray) -> np.ndarray:
-    return np.asarray(lhs @ v) + _line_hessian(problem, v)
+    out = np.asarray(lhs @ v)
+    if problem.flat is not None and problem.w_line > 0:
+        out = out + _line_profile(problem, v.reshape(problem.kz))[1].ravel()
+    return out
 
 
 def _gauss_newton(problem: Problem, p: np.ndarray, steps: int, inner: int) -> tuple:

@@ -649,6 +649,33 @@ class RasterRenderer:
             bound = max(bound, self._geometry["r_max"] * phid * reach * row_width)
         return _FIXED_POINT_TOP / bound if bound > 0 else 1.0
 
+    @staticmethod
+    def _pass1_uniforms(draw: Any, origin: np.ndarray, far: float, along: int) -> dict:
+        """Uniforms of the pass-1 (samples) program for one draw, ``along`` rows per ping."""
+        seg = draw.segment
+        return {
+            "seg_origin": tuple((seg.origin - origin).astype("f4")),
+            "axis_along": tuple(seg.fore),
+            "motion": tuple(draw.motion),
+            "axis_side": tuple(draw.axis_side),
+            "axis_up": tuple(seg.up),
+            "warp_h": draw.warp.h,
+            "warp_c": draw.warp.c,
+            "alpha0": draw.warp.alpha0,
+            "rho0": draw.warp.rho0,
+            "slope0": draw.warp.slope0,
+            "row_scale": 2.0 / (draw.spacing * draw.rows),
+            "row_offset": 1.0 / draw.rows - 1.0,
+            "far_range": far,
+            # A triangle can only span more than pi of look angle by wrapping over the top.
+            "alpha_span_max": math.pi,
+            "spacing": draw.spacing,
+            "rows_per_ping": float(along),
+            "row_width": seg.width / along,
+            # -1 when the (along, side, up) frame is left-handed: flips the computed normals.
+            "frame_sign": draw.frame_sign,
+        }
+
     def _draw(
         self,
         draw: _Draw,
@@ -695,28 +722,7 @@ class RasterRenderer:
         has_raster = int(geometry["n_faces"] > 0)
         far = 1.5 * sonar.max_range
         rho_lo_all, rho_hi_all = draw.warp.rho_range
-        uniforms = {
-            "seg_origin": tuple((seg.origin - origin).astype("f4")),
-            "axis_along": tuple(seg.fore),
-            "motion": tuple(draw.motion),
-            "axis_side": tuple(draw.axis_side),
-            "axis_up": tuple(seg.up),
-            "warp_h": draw.warp.h,
-            "warp_c": draw.warp.c,
-            "alpha0": draw.warp.alpha0,
-            "rho0": draw.warp.rho0,
-            "slope0": draw.warp.slope0,
-            "row_scale": 2.0 / (draw.spacing * draw.rows),
-            "row_offset": 2.0 * 0.5 / draw.rows - 1.0,
-            "far_range": far,
-            # A triangle can only span more than pi of look angle by wrapping over the top.
-            "alpha_span_max": math.pi,
-            "spacing": draw.spacing,
-            "rows_per_ping": float(along),
-            "row_width": seg.width / along,
-            # -1 when the (along, side, up) frame is left-handed: flips the computed normals.
-            "frame_sign": draw.frame_sign,
-        }
+        uniforms = self._pass1_uniforms(draw, origin, far, along)
         for name, value in uniforms.items():
             if name in prog:
                 prog[name].value = value
@@ -989,34 +995,14 @@ class RasterRenderer:
     ) -> np.ndarray:
         """Pass 1 of one column tile; the sample targets' slant ranges (inf: no hit)."""
         ctx = self.ctx
-        seg = draw.segment
         first, count, total, table = tile
         prog = self._program("samples", False)
         vao = self._vao(geometry, False)
         rho_lo_all, rho_hi_all = draw.warp.rho_range
         d_rho = (rho_hi_all - rho_lo_all) / total
-        uniforms = {
-            "seg_origin": tuple((seg.origin - origin).astype("f4")),
-            "axis_along": tuple(seg.fore),
-            "motion": tuple(draw.motion),
-            "axis_side": tuple(draw.axis_side),
-            "axis_up": tuple(seg.up),
-            "warp_h": draw.warp.h,
-            "warp_c": draw.warp.c,
-            "alpha0": draw.warp.alpha0,
-            "rho0": draw.warp.rho0,
-            "slope0": draw.warp.slope0,
-            "row_scale": 2.0 / (draw.spacing * draw.rows),
-            "row_offset": 1.0 / draw.rows - 1.0,
-            "far_range": 1.5 * sonar.max_range,
-            "alpha_span_max": math.pi,
-            "spacing": draw.spacing,
-            "rows_per_ping": 1.0,
-            "row_width": seg.width,
-            "frame_sign": draw.frame_sign,
-            "rho_lo": rho_lo_all + first * d_rho,
-            "rho_hi": rho_lo_all + (first + count) * d_rho,
-        }
+        uniforms = self._pass1_uniforms(draw, origin, 1.5 * sonar.max_range, 1)
+        uniforms["rho_lo"] = rho_lo_all + first * d_rho
+        uniforms["rho_hi"] = rho_lo_all + (first + count) * d_rho
         for name, value in uniforms.items():
             if name in prog:
                 prog[name].value = value
