@@ -44,9 +44,24 @@ def add_parser(sub: Any) -> None:
         "DIR/port/ and DIR/starboard/ (with PNG quick-looks elevation.png, reflectivity.png), "
         "plus DIR/bottom_track.csv, DIR/waterfall.png and, with navigation, GeoTIFFs "
         "DIR/elevation.tif, reflectivity.tif and mosaic.tif and their quick-looks "
-        "DIR/elevation.png (hillshaded), reflectivity.png and mosaic.png.",
+        "DIR/elevation.png (hillshaded), reflectivity.png and mosaic.png. Several XTF files "
+        "(or one with --lines) are survey lines: each is inverted and all are gridded together "
+        "into DIR/elevation.tif (+ elevation_std.tif with --method surface), reflectivity.tif, "
+        "mosaic.tif and their quick-looks, each line's own products in DIR/line_N/.",
     )
-    inv.add_argument("image", help="input image, or an .xtf file")
+    inv.add_argument("image", nargs="+", help="input image, or .xtf files (several: survey lines)")
+    inv.add_argument(
+        "--lines",
+        action="store_true",
+        help="XTF input: each file holds several survey lines, split at its turns (heading "
+        "change over 10 m of track above 20 degrees; turn pings dropped), gridded together",
+    )
+    inv.add_argument(
+        "--line-pings",
+        metavar="A:B,C:D",
+        help="XTF input: the survey lines of the one file given, as ping ranges (stop "
+        "excluded), gridded together (instead of finding its turns)",
+    )
     inv.add_argument("-o", "--output", required=True, metavar="DIR", help="output directory")
     inv.add_argument(
         "--range-bin",
@@ -74,8 +89,8 @@ def add_parser(sub: Any) -> None:
         default="profiles",
         help="profiles (default): one elevation profile per ping from one side; surface: one "
         "smooth surface fitted to every ping of both sides (where the image has both) with a "
-        "speckle likelihood, into DIR/port/ and DIR/starboard/ with elevation_std.exr; "
-        "see docs/inversion.md",
+        "speckle likelihood, into DIR/port/ and DIR/starboard/ with elevation_std.exr (and "
+        "DIR/elevation_std.tif for XTF input); see docs/inversion.md",
     )
     inv.add_argument(
         "--max-iter",
@@ -155,7 +170,19 @@ def add_parser(sub: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``sonar-raster invert``: one side of an image, or both sides of an XTF file."""
-    if Path(args.image).suffix.lower() == ".xtf":
+    images = list(args.image) if isinstance(args.image, (list, tuple)) else [args.image]
+    xtf = [Path(p).suffix.lower() == ".xtf" for p in images]
+    if len(images) > 1 or args.lines or args.line_pings:
+        if not all(xtf):
+            raise SonarRasterError(
+                "several inputs, --lines and --line-pings are for XTF files (survey lines); "
+                "invert an image on its own"
+            )
+        args.image = images
+        _check_output_dir(Path(args.output), ())
+        return _invert_lines(args)
+    args.image = images[0]
+    if xtf[0]:
         _check_output_dir(Path(args.output), ("port", "starboard"))
         return _invert_xtf(args)
     _check_output_dir(Path(args.output), ())
@@ -458,6 +485,151 @@ def _xtf_samples(path: Path) -> int | None:
     return max(1, size // _XTF_SAMPLE_BYTES)
 
 
+def _parse_lines(text: str) -> list[tuple[int, int]]:
+    """``--line-pings``: ranges ``A:B,C:D`` (stop excluded)."""
+    ranges = []
+    for part in text.split(","):
+        a, sep, b = part.strip().partition(":")
+        try:
+            lo, hi = int(a), int(b)
+        except ValueError:
+            lo = hi = -1
+        if not sep or lo < 0 or hi <= lo:
+            raise SonarRasterError(
+                f"--line-pings: {part!r} is not a ping range A:B with 0 <= A < B; e.g. "
+                "--line-pings 0:800,840:1650"
+            )
+        ranges.append((lo, hi))
+    return ranges
+
+
+def _invert_lines(args: argparse.Namespace) -> int:
+    """``sonar-raster invert A.xtf B.xtf ... -o DIR`` (or one file ``--lines``): survey lines."""
+    from ..inversion import lines as ml
+    from ..inversion.solver import BeamProfile
+    from ..io.commit import commit
+
+    out = Path(args.output)
+    if args.lines and args.line_pings:
+        raise SonarRasterError("give --lines (find the turns) or --line-pings A:B,C:D, not both")
+    split: bool | list[tuple[int, int]] = (
+        _parse_lines(args.line_pings) if args.line_pings else bool(args.lines)
+    )
+    if args.pings and len(args.image) > 1:
+        raise SonarRasterError("--pings applies to one file; give the lines' files whole")
+    if args.side:
+        raise SonarRasterError("--side is for one file; survey lines are inverted on both sides")
+    sizes = [_xtf_samples(Path(p)) for p in args.image]
+    if not args.pings and all(sizes):
+        check_cost(
+            sum(s for s in sizes if s),
+            f"inverting {len(args.image)} XTF files",
+            "invert fewer files or pings at a time",
+            args,
+        )
+    lines, notes = ml.read_lines(args.image, split=split, pings=parse_pings(args.pings))
+    if not args.quiet:
+        for note in notes or [ml.describe_lines(lines)]:
+            print(note)
+    if len(lines) < 2:
+        raise SonarRasterError(
+            f"{ml.describe_lines(lines)}: several lines need two or more; invert a single "
+            "line without --lines or --line-pings"
+        )
+    options = _line_options(args, BeamProfile)
+    results = ml.invert_lines(
+        lines, method=args.method, altitude=args.altitude, progress=not args.quiet, **options
+    )
+    datum = ml.vertical_datum(lines)
+    samples = [ml.line_samples(line, res, datum) for line, res in zip(lines, results, strict=True)]
+    gridded = ml.grid_lines(
+        samples, ml.default_pixel(lines, results), lines[0].crs, align=datum == "first line"
+    )
+    jobs = _line_jobs(args, out, lines, results, gridded, datum)
+    made = [
+        d for d in sorted({p.parent for p, _ in jobs}, key=lambda p: len(p.parts)) if not d.exists()
+    ]
+    for folder in made:
+        folder.mkdir(parents=True, exist_ok=True)
+    try:
+        written = commit(jobs)  # every line's products and the combined ones, or none
+    except BaseException:
+        for folder in reversed(made):
+            if folder.is_dir() and not any(folder.iterdir()):
+                folder.rmdir()
+        raise
+    if not args.quiet:
+        crs = gridded.combined.crs or "none (file coordinates)"
+        print(f"elevation datum: {datum}; pixel {gridded.combined.pixel:.3f} m; CRS {crs}")
+        if datum == "first line":
+            shifts = ", ".join(f"{o:+.3f}" for o in gridded.offsets[1:])
+            print(f"line elevation offsets to line 1 (from overlaps), m: {shifts}")
+        for path in written:
+            print(f"wrote {path}")
+    return 0
+
+
+def _line_options(args: argparse.Namespace, beam_profile: Any) -> dict[str, Any]:
+    """The inversion options of an XTF line (profiles: the solver's; surface: looks, max_iter)."""
+    if args.method == "surface":
+        for name, value in (("--beam", args.beam), ("--flat-prior", args.flat_prior)):
+            if value:
+                raise SonarRasterError(f"{name} is not used by --method surface; leave it out")
+        return {"max_iter": args.max_iter, "looks": args.looks}
+    options: dict[str, Any] = {"max_iter": args.max_iter, "looks": args.looks}
+    for name in ("levels", "tol", "flat_prior", "relief_std", "slope_std"):
+        if getattr(args, name) is not None:
+            options[name] = getattr(args, name)
+    if args.beam:
+        options["beam"] = beam_profile.load(args.beam)
+    return options
+
+
+def _line_jobs(args, out: Path, lines, results, gridded, datum: str) -> list:
+    """Every file of a multi-line inversion: combined GeoTIFFs and PNGs, then per line."""
+    from ..inversion import lines as ml
+    from ..inversion.track_io import write_track_csv
+    from ..inversion.write import product_jobs
+    from ..inversion.xtf import geotiff_jobs
+    from ..io.commit import write_json
+
+    descriptions = ml.geotiff_descriptions(datum)
+    jobs = geotiff_jobs(out, gridded.combined, descriptions)
+    jobs += ml.quicklook_jobs(out, gridded.combined)
+    for k, (line, res, raster) in enumerate(zip(lines, results, gridded.lines, strict=True)):
+        folder = out / f"line_{k + 1}"
+        jobs += geotiff_jobs(folder, raster, descriptions)
+        csv = partial(
+            write_track_csv,
+            track=line.track,
+            recorded=line.recorded_altitude,
+            pings=[int(p) for p in line.pings],
+        )
+        doc = {
+            "source": line.source,
+            "pings": [int(line.pings[0]), int(line.pings[-1]) + 1],
+            "datum": datum,
+            "elevation_offset_m": gridded.offsets[k],
+            "method": args.method,
+            "ping_spacing_m": line.ping_spacing,
+        }
+        jobs += [
+            (folder / "bottom_track.csv", csv),
+            (folder / "line.json", partial(write_json, doc=doc)),
+        ]
+        for side, inv in res.items():
+            jobs += product_jobs(
+                inv,
+                folder / side,
+                side,
+                line.range_bin,
+                mesh=not args.no_mesh,
+                previews=not args.no_previews,
+                quicklooks=True,
+            )
+    return jobs
+
+
 def _invert_xtf(args: argparse.Namespace) -> int:
     """``sonar-raster invert FILE.xtf -o DIR``: both sides, bottom-tracked, with GeoTIFFs."""
     from ..inversion.solver import BeamProfile
@@ -471,12 +643,6 @@ def _invert_xtf(args: argparse.Namespace) -> int:
     if samples:
         check_cost(samples, f"inverting {Path(args.image).name} (samples from its size)",
                    "invert fewer pings at a time (--pings A:B)", args)  # fmt: skip
-    options: dict[str, Any] = {"max_iter": args.max_iter, "looks": args.looks}
-    for name in ("levels", "tol", "flat_prior", "relief_std", "slope_std"):
-        if getattr(args, name) is not None:
-            options[name] = getattr(args, name)
-    if args.beam:
-        options["beam"] = BeamProfile.load(args.beam)
     result = invert_xtf(
         args.image,
         pings=parse_pings(args.pings),
@@ -484,7 +650,8 @@ def _invert_xtf(args: argparse.Namespace) -> int:
         altitude=args.altitude,
         ping_spacing=args.ping_spacing,
         progress=not args.quiet,
-        **options,
+        method=args.method,
+        **_line_options(args, BeamProfile),
     )
     image, nav = result.image, result.navigation
     raster = georeference(result) if nav.valid.any() else None
@@ -518,7 +685,7 @@ def _invert_xtf(args: argparse.Namespace) -> int:
         for line in summary_lines(result.track, nav.altitude, image.sonar.range_bin):
             print(line)
         for side, inv in result.sides.items():
-            for line in energy_summary(inv):
+            for line in energy_summary(inv) if args.method == "profiles" else []:
                 print(f"{side}: {line}")
         if raster is None:
             print("no navigation in the file: no GeoTIFF written")

@@ -33,6 +33,9 @@ each:
   relative to the transducer; ``reflectivity.tif`` is R; ``mosaic.tif`` the evenly
   illuminated ground-range image (:func:`mosaic_values`).
 - PNG quick-looks of the products, with colour and scale bars: :func:`quicklook_jobs`.
+- ``method="surface"`` fits both sides as one surface (:func:`.surface.invert_line`); its
+  ``elevation_std`` is gridded as a variance and written as ``elevation_std.tif``. Several
+  files or lines are gridded together by :mod:`.lines`.
 """
 
 from __future__ import annotations
@@ -65,6 +68,7 @@ GEOTIFFS = {
     "reflectivity.tif": "recovered reflectivity R",
     "mosaic.tif": "evenly illuminated ground-range image of both sides (seed Eq. 22: the "
     "ground image over the recovered beam and incidence cosine; R-like)",
+    "elevation_std.tif": "standard deviation of the elevation, metres (--method surface only)",
 }
 
 QUICKLOOKS = {
@@ -73,6 +77,7 @@ QUICKLOOKS = {
     "mosaic.png": "mosaic.tif in dB, north up",
     "elevation.png": "elevation.tif hillshaded (light from the north-west), coloured by height",
     "reflectivity.png": "reflectivity.tif",
+    "elevation_std.png": "elevation_std.tif (--method surface)",
 }
 
 
@@ -119,6 +124,7 @@ def invert_xtf(
     ping_spacing: float | None = None,
     amplitude: bool = True,
     progress: bool = False,
+    method: str = "profiles",
     **options,
 ) -> XtfInversion:
     """Read an XTF file, track the bottom and invert each side.
@@ -142,9 +148,12 @@ def invert_xtf(
         samples as they are.
     progress : bool
         Progress bars.
+    method : {"profiles", "surface"}
+        ``"profiles"``: :func:`.solver.invert` per side; ``"surface"``: one surface for both
+        sides (:func:`.surface.invert_line`, with ``elevation_std``).
     **options
         Passed to :func:`.solver.invert` (``max_iter``, ``levels``, ``tol``,
-        ``beam``).
+        ``beam``); for ``"surface"`` only ``max_iter`` and ``looks``.
 
     Returns
     -------
@@ -164,16 +173,33 @@ def invert_xtf(
     missing = [s for s in chosen if s not in image.sides]
     if missing:
         raise SonarRasterError(f"{path} has no {', '.join(missing)} channel")
-    results, blank = {}, 0
+    slants, blank = {}, 0
     for side in chosen:
         slant = image.sides[side].astype(np.float64)
         if amplitude:
             slant *= slant
         blank = max(blank, blanking_bins(slant))
+        slants[side] = slant
+    for slant in slants.values():
         slant[:, :blank] = 0.0  # the transmit pulse is not seabed
-        results[side] = invert(
-            slant, dr, altitude=alt, ping_spacing=ping_spacing, progress=progress, **options
-        )
+    if method == "surface":
+        from .lines import surface_options
+        from .surface import invert_line
+
+        results = invert_line(
+            slants, dr, ping_spacing=ping_spacing or dr,
+            altitude=np.full(image.shape[0], float(altitude)) if altitude else None,
+            progress=print if progress else None, **surface_options(options),
+        )  # fmt: skip
+    elif method == "profiles":
+        results = {
+            side: invert(
+                slant, dr, altitude=alt, ping_spacing=ping_spacing, progress=progress, **options
+            )
+            for side, slant in slants.items()
+        }
+    else:
+        raise SonarRasterError(f"unknown method {method!r}; use profiles or surface")
     return XtfInversion(image, nav, track, results, blank, amplitude)
 
 
@@ -229,6 +255,7 @@ def grid(
     crs: str | None,
     along_factor: int = 1,
     method: str = "footprint",
+    frame: tuple[float, float, int, int] | None = None,
 ) -> Raster:
     """Grid samples on a north-up raster: each pixel the area-weighted mean of what covers it.
 
@@ -261,11 +288,14 @@ def grid(
         lowered (with a logged note) to keep the samples within :data:`MAX_GRID_SAMPLES`.
     method : {"footprint", "points"}
         How samples are spread over pixels.
+    frame : (west, north, rows, cols), optional
+        The raster's outer west and north edges (metres) and size (default: spanning the
+        samples, :func:`raster_frame`), e.g. one frame shared by several lines.
 
     Returns
     -------
     Raster
-        Spanning the sample positions; a pixel nothing covers is NaN.
+        Spanning the sample positions (or ``frame``); a pixel nothing covers is NaN.
 
     Raises
     ------
@@ -277,7 +307,7 @@ def grid(
         raise SonarRasterError(f"the pixel size must be a positive number of metres, got {pixel}")
     if method not in GRID_METHODS:
         raise SonarRasterError(f"unknown gridding {method!r}; use one of {', '.join(GRID_METHODS)}")
-    west, top, rows, cols = _extent(samples, pixel)
+    west, top, rows, cols = frame or raster_frame(samples, pixel)
     if method == "points":
         return _grid_points(samples, pixel, crs, along_factor, (west, top, rows, cols))
     _affordable_factor(samples, 1)  # the same refusal of too many samples
@@ -411,10 +441,14 @@ def _grid_points(
     return Raster(layers, west, top, pixel, crs)
 
 
-def _extent(
+def raster_frame(
     samples: list[tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]], pixel: float
 ) -> tuple[float, float, int, int]:
-    """West and north edges, rows and columns of the raster; refused beyond MAX_GRID_CELLS."""
+    """West and north edges, rows and columns of the raster spanning ``samples``.
+
+    The edges are whole multiples of ``pixel``, so the frames of any samples share one pixel
+    lattice. Refused (:class:`SonarRasterError`) beyond :data:`MAX_GRID_CELLS` pixels.
+    """
     lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
     for e, n, _ in samples:
         placed = np.isfinite(e) & np.isfinite(n)
@@ -476,7 +510,8 @@ def georeference(
     Returns
     -------
     Raster
-        Layers ``elevation``, ``reflectivity`` and ``mosaic`` (:func:`mosaic_values`).
+        Layers ``elevation``, ``reflectivity`` and ``mosaic`` (:func:`mosaic_values`), and
+        ``elevation_std`` where every side has one (the surface fit; gridded as a variance).
 
     Raises
     ------
@@ -503,13 +538,20 @@ def georeference(
     else:
         factor = 1
     by_side = {}
+    with_std = all(getattr(i, "elevation_std", None) is not None for i in result.sides.values())
     for side, inv in result.sides.items():
         e, n = ground_positions(east, north, heading, pitch, inv.x, inv.elevation, side)
         z = inv.elevation * np.cos(pitch)[:, None] - (depth[:, None] if has_depth else 0.0)
         layers = {"elevation": z, "reflectivity": inv.reflectivity, "mosaic": mosaic_values(inv)}
+        if with_std:
+            layers["elevation_var"] = (inv.elevation_std * np.cos(pitch)[:, None]) ** 2
         by_side[side] = (e, n, layers)
     samples = join_sides(by_side) if method == "footprint" else list(by_side.values())
-    return grid(samples, px, nav.crs, factor, method=method)
+    raster = grid(samples, px, nav.crs, factor, method=method)
+    var = raster.layers.pop("elevation_var", None)
+    if var is not None:  # gridded as a variance, written as a standard deviation
+        raster.layers["elevation_std"] = np.sqrt(var)
+    return raster
 
 
 def join_sides(
@@ -593,11 +635,19 @@ def _write_geotiff(tmp: Path, values: np.ndarray, raster: Raster, description: s
             dst.update_tags(crs="unknown: the XTF file's projected coordinates, metres")
 
 
-def geotiff_jobs(directory: Path, raster: Raster) -> list[tuple[Path, Callable[[Path], None]]]:
-    """(path, writer) jobs for :func:`sonar_raster.io.commit.commit`, one GeoTIFF per layer."""
+def geotiff_jobs(
+    directory: Path, raster: Raster, descriptions: dict[str, str] | None = None
+) -> list[tuple[Path, Callable[[Path], None]]]:
+    """(path, writer) jobs for :func:`sonar_raster.io.commit.commit`, one GeoTIFF per layer.
+
+    ``descriptions`` maps file names (``"elevation.tif"``) to the text tagged into each
+    (default :data:`GEOTIFFS`); a file whose layer the raster lacks is left out.
+    """
     jobs: list[tuple[Path, Callable[[Path], None]]] = []
-    for name, description in GEOTIFFS.items():
-        layer = raster.layers[name.removesuffix(".tif")]
+    for name, description in (descriptions or GEOTIFFS).items():
+        layer = raster.layers.get(name.removesuffix(".tif"))
+        if layer is None:
+            continue
         jobs.append((directory / name, partial(_write_geotiff, values=layer, raster=raster,
                                                description=description)))  # fmt: skip
     return jobs
@@ -646,4 +696,15 @@ def quicklook_jobs(
                                                  values=layers["reflectivity"], cell_m=px,
                                                  title=f"reflectivity{crs}")),
     ]  # fmt: skip
+    if "elevation_std" in layers:
+        std = std_quicklook(layers["elevation_std"], px, f"elevation std{crs}")
+        jobs.append((directory / "elevation_std.png", std))
     return jobs
+
+
+def std_quicklook(values: np.ndarray, pixel: float, title: str) -> Callable[[Path], None]:
+    """Writer of a north-up PNG of the elevation's standard deviation (metres)."""
+    from . import quicklook as ql
+
+    return partial(ql.map_png, values=values, cell_m=pixel, cmap="magma",
+                   label="std of elevation, m", title=title, north_up=True)  # fmt: skip
