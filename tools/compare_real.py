@@ -3,7 +3,9 @@
 Reads ``../shared/data/xtf/scotsman-iver2.xtf`` (Marine Sonic HDS, 600 kHz, Iver2 AUV) with
 pyxtf directly, then renders a flat sandy seabed at the same slant range, bin size and ping
 spacing, along a track whose altitude follows the real first bottom return ping by ping (the
-vehicle dives through the file, from about 11 m to 3 m altitude), applies the sensor effects,
+vehicle dives through the file, from about 11 m to 3 m altitude, pitched 20° nose down for half
+of it: each ping is pitched and rolled as the file records, ``--level`` for level fans), applies
+the sensor effects,
 and prints, per side:
 
 * mean intensity against slant range (real and simulated, each normalised to its own mean over
@@ -21,7 +23,11 @@ mean profile with a thin-fan closed form (``--beam-deg``/``--tilt-deg`` fix them
 starboard wreck (OpenSidescan hit at ping 138; rows 98-377 hold it and its shadow) is masked
 out of the statistics.
 
-Usage: ``python tools/compare_real.py [--xtf PATH] [--along-beam-deg 0.5] [--png out.png]``.
+It also prints the real file's own port-vs-starboard mean-profile difference over the same
+pings: the floor a left-right symmetric sensor over a uniform seabed cannot go below.
+
+Usage: ``python tools/compare_real.py [--xtf PATH] [--level] [--downsample off|max|mean]
+[--k-shape NU] [--law lambert] [--along-beam-deg 0.5] [--png out.png] [--json out.json]``.
 """
 
 from __future__ import annotations
@@ -51,6 +57,8 @@ class RealPass:
     frequency_hz: float
     ping_spacing: float
     hits: list[tuple[int, int]]  # (ping, sample) targets
+    pitch_deg: np.ndarray | None = None  # per ping, positive nose up (XTF SensorPitch)
+    roll_deg: np.ndarray | None = None  # per ping, positive starboard down (XTF SensorRoll)
 
 
 def read_real(path: Path) -> RealPass:
@@ -78,7 +86,9 @@ def read_real(path: Path) -> RealPass:
     sides = {"port": port**2, "starboard": star**2}
     samples = {"port": port, "starboard": star}
     freq = float(chan.Frequency) * 1e3
-    return RealPass(sides, samples, max_range / n, max_range, freq, spacing, hits)
+    pitch = np.array([p.SensorPitch for p in pings], dtype=np.float64)
+    roll = np.array([p.SensorRoll for p in pings], dtype=np.float64)
+    return RealPass(sides, samples, max_range / n, max_range, freq, spacing, hits, pitch, roll)
 
 
 def first_returns(samples: np.ndarray, skip: int = 16) -> np.ndarray:
@@ -197,12 +207,19 @@ def simulate(real: RealPass, altitudes: np.ndarray, args: argparse.Namespace, be
     sonar = p.sonar(real.max_range, real.range_bin)
     if beam is not None:
         sonar = replace(sonar, beam=BeamPattern.gaussian(beam), tilt=math.radians(tilt))
+    pitch = roll = np.zeros(n_pings)
+    heights = altitudes
+    if args.attitude and real.pitch_deg is not None and real.roll_deg is not None:
+        # The fan is a plane: its nearest seabed point is h / cos(pitch) away whatever the roll.
+        pitch = np.radians(ndimage.median_filter(real.pitch_deg, 5, mode="nearest"))
+        roll = np.radians(ndimage.median_filter(real.roll_deg, 5, mode="nearest"))
+        heights = altitudes * np.cos(pitch)
     positions = np.stack(
-        [np.zeros(n_pings), np.arange(n_pings) * real.ping_spacing, altitudes], axis=1
+        [np.zeros(n_pings), np.arange(n_pings) * real.ping_spacing, heights], axis=1
     )
-    traj = Trajectory(positions, np.zeros(n_pings), np.zeros(n_pings))
+    traj = Trajectory(positions, np.zeros(n_pings), roll, pitch)
     scene = build_scene([seabed, wreck_block(real, altitudes)])
-    raw = render_raster(scene, sonar, traj)  # level fans: pitch is not modelled
+    raw = render_raster(scene, sonar, traj)  # pitched and rolled fans unless --level
     fx = replace(p.effects(), ping_spacing_m=real.ping_spacing)
     for name, value in (
         ("along_beam_deg", args.along_beam_deg),
@@ -212,6 +229,11 @@ def simulate(real: RealPass, altitudes: np.ndarray, args: argparse.Namespace, be
     ):
         if value is not None:
             fx = replace(fx, **{name: value})
+    if args.downsample == "off":  # the recorder keeps one sample per bin
+        fx = replace(fx, downsample="off", sample_spacing_m=None)
+    elif args.downsample != "preset":  # MAX or mean of sub-samples at half the resolution cell
+        cell = fx.range_resolution_m or real.range_bin
+        fx = replace(fx, downsample=args.downsample, sample_spacing_m=cell / 2.0)
     if args.k_shape is not None:  # K-distributed: a patchy seabed's texture under the speckle
         fx = replace(fx, speckle="k", k_shape=args.k_shape)
     return raw, apply_effects(raw, fx, seed=args.seed, trajectory=traj)
@@ -379,6 +401,25 @@ def band_rows(real: RealPass, sim, firsts, profiles, window: slice, n_bands: int
     return out
 
 
+def side_asymmetry(real: RealPass, window: slice, n_bands: int) -> list[float]:
+    """RMS difference (dB) per range band between the real port and starboard mean profiles
+    over the pings the starboard statistics use (wreck rows dropped): what no left-right
+    symmetric sensor over a uniform seabed can reproduce."""
+    keep = np.ones(real.sides["port"].shape[0], bool)
+    keep[:SKIP_PINGS] = False
+    for ping, _ in real.hits:
+        keep[max(0, ping + WRECK_ROWS[0]) : ping + WRECK_ROWS[1]] = False
+    port, star = (
+        10 * np.log10(normalised_profile(real.sides[s][keep], window))
+        for s in ("port", "starboard")
+    )
+    edges = np.linspace(window.start, window.stop, n_bands + 1).astype(int)
+    return [
+        float(np.sqrt(np.mean((port[a:b] - star[a:b]) ** 2)))
+        for a, b in zip(edges[:-1], edges[1:], strict=True)
+    ]
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = parser(__doc__)
     ap.add_argument("--xtf", type=Path, default=DEFAULT_XTF)
@@ -391,6 +432,12 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--k-shape", type=float, default=None, help="K texture shape ν (default: none)")
     ap.add_argument(
+        "--downsample",
+        choices=("preset", "off", "max", "mean"),
+        default="preset",
+        help="recorder's reduction of sub-samples to bins (default: the preset's)",
+    )
+    ap.add_argument(
         "--law",
         choices=("apl", "lambert"),
         default="apl",
@@ -401,6 +448,12 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--beam-deg", type=float, default=None)
     ap.add_argument("--tilt-deg", type=float, default=None)
+    ap.add_argument(
+        "--level",
+        dest="attitude",
+        action="store_false",
+        help="level fans (default: each ping pitched and rolled as the file records)",
+    )
     ap.add_argument("--bands", type=int, default=3, help="range bands (default 3)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--png", type=Path, default=None, help="write real | simulated here")
@@ -451,6 +504,7 @@ def main(argv: list[str] | None = None) -> int:
                 a = a[keep]
             profiles[side, name] = 10 * np.log10(np.maximum(normalised_profile(a, window), 1e-12))
     rows = band_rows(real, sim, firsts, profiles, window, args.bands)
+    floor = side_asymmetry(real, window, args.bands)
     t = TARGETS
     print()
     print(
@@ -464,6 +518,10 @@ def main(argv: list[str] | None = None) -> int:
             f"{row['ks']:6.3f} {100 * row['along_real']:6.2f}/{100 * row['along_sim']:<6.2f} "
             f"{100 * row['across_real']:6.2f}/{100 * row['across_sim']:.2f}"
         )
+    print(
+        "real port vs real starboard at the starboard's pings (mean profile dB RMS per band; "
+        "a symmetric sensor over a uniform seabed gives 0): " + ", ".join(f"{v:.2f}" for v in floor)
+    )
     shadow = {"real": shadow_contrast(real.sides["starboard"])}
     shadow["sim"] = shadow_contrast(sim.sides["starboard"])
     print(
@@ -489,7 +547,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{name:34s} {sum(ok)} of {len(ok)} reached")
     if args.json:
         args.json.write_text(
-            __import__("json").dumps({"bands": rows, "shadow_db": shadow}, indent=1)
+            __import__("json").dumps(
+                {"bands": rows, "shadow_db": shadow, "side_asymmetry_db": floor}, indent=1
+            )
         )
     if args.png:
         write_png(args.png, real, sim)

@@ -5,7 +5,7 @@ altitude, 30 m range) is rendered once on the GL path; each picture applies one 
 short chain) to that raw image. Every picture uses the same display: 40 dB below its own
 99.5th percentile, copper colour map, range increasing to the right, pings downwards.
 
-Usage: ``python tools/effects_gallery.py [--out docs/effects]``.
+Usage: ``python tools/effects_gallery.py [--out docs/effects] [--only NAME ...]``.
 """
 
 from __future__ import annotations
@@ -40,6 +40,15 @@ def gallery(seabed_db: float, alpha: float) -> dict[str, tuple[dict, str]]:
         "speckle_k": (
             {"speckle": "k", "k_shape": 0.5, "range_resolution_m": 0.1},
             "K-distributed speckle, nu = 0.5 (patchy)",
+        ),
+        "recorder_max": (
+            {
+                "speckle": "exponential",
+                "range_resolution_m": 0.0125,
+                "downsample": "max",
+                "sample_spacing_m": 0.00625,
+            },
+            "1.25 cm pulse, recorder keeps the largest of 8 samples per 5 cm bin (XTF MAX)",
         ),
         "noise": (
             {"water_column_db": seabed_db - 15.0, "noise_db": seabed_db - 12.0},
@@ -115,6 +124,7 @@ def main(argv: list[str] | None = None) -> int:
     from sonar_raster.effects.chain import Effects, apply_effects
 
     ap = parser(__doc__, out=DOCS / "effects")
+    ap.add_argument("--only", nargs="+", default=None, help="make only these pictures")
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     raw, traj = render_scene()
@@ -122,6 +132,8 @@ def main(argv: list[str] | None = None) -> int:
     seabed_db = 10.0 * math.log10(float(np.median(star[star > 0])))
     alpha = Effects(absorption=True).alpha_db_m(raw.sonar.frequency_hz)
     for name, (settings, caption) in gallery(seabed_db, alpha).items():
+        if args.only and name not in args.only:
+            continue
         if "bits" in settings and "saturation" not in settings:  # full scale 15 dB up
             unquantised = dict(settings, bits=None)
             level = apply_effects(raw, Effects(**unquantised), seed=1, trajectory=traj)

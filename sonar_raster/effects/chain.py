@@ -20,6 +20,9 @@ costs nothing, and with every stage off the input arrays come back untouched:
    spreading it falls as ``r⁻³``, like the seabed it is compared with.
 4. ``speckle`` — multiplicative unit-mean speckle, exponential or K-distributed, correlated at
    the resolution cell (along track: the footprint above; across: ``range_resolution_m``).
+   With ``downsample`` ("max" or "mean", XTF DownsampleMethod MAX / RMS) the field is made on
+   the recorder's sub-sample grid (``sample_spacing_m``) and each recorded bin keeps the
+   largest or the mean of its sub-samples, K texture applied before that reduction.
 5. ``spreading`` — two-way spherical spreading, intensity × ``r⁻⁴`` at the bin centre r (m).
    Convention: the raw image is an integrated scattering area σ (m²); after this stage a value
    is the echo intensity relative to the source level at 1 m, ``σ / r⁴`` (``TS - 40 log r``).
@@ -27,7 +30,8 @@ costs nothing, and with every stage off the input arrays come back untouched:
    frequency and the water's temperature, salinity, depth and pH (or given directly).
 7. ``noise`` — additive receiver noise, exponentially distributed intensity of mean
    ``10^(noise_db / 10)`` in the image's units at this point (with spreading on: noise level
-   minus source level, dB), independent per pixel.
+   minus source level, dB), independent per pixel; with ``downsample`` on, band-limited to the
+   range resolution and reduced per bin like the speckle (same mean level).
 8. ``tvg`` — time-varied gain ``× 10^(G(r) / 10)``, ``G = N log10 r + 2 α r`` (N = 40 undoes the
    spreading of a point target, 30 that of a seabed seen through a side-scan footprint that
    grows as r) or a user curve of (range m, gain dB) points, linearly interpolated.
@@ -73,6 +77,7 @@ STAGES = (
     "quantise",
 )
 SPECKLE_KINDS = ("off", "exponential", "k")
+DOWNSAMPLE_KINDS = ("off", "max", "mean")
 TVG_KINDS = ("off", "log", "curve")
 QUANTISE_BITS = (8, 12, 16)
 
@@ -85,6 +90,7 @@ _POSITIVE_OR_NONE = (
     "ping_spacing_m",
     "saturation",
     "range_resolution_m",
+    "sample_spacing_m",
 )
 #: Fields that are None or a finite number (their ranges are checked apart).
 _NUMBER_OR_NONE = (
@@ -145,6 +151,14 @@ class Effects:
         into one; 1 is fully developed single-look speckle.
     range_resolution_m : float, optional
         Range resolution cell for speckle correlation, metres; default: one range bin.
+    downsample : {"off", "max", "mean"}
+        How the recorder turns the sub-samples of one recorded bin into its value (XTF
+        ``DownsampleMethod``: 2 = MAX; 4 = RMS, the mean intensity): speckle and receiver
+        noise are made on the sub-sample grid (``sample_spacing_m``) and reduced per bin
+        (``speckle_looks`` and ``k_shape`` then apply to the sub-samples).
+    sample_spacing_m : float, optional
+        Spacing of the recorder's samples before downsampling, metres (slant range); a bin
+        holds ``round(range_bin / sample_spacing_m)`` of them (at least 1).
     spreading : bool
         Apply two-way spherical spreading, ``r⁻⁴``.
     absorption : bool
@@ -189,6 +203,8 @@ class Effects:
     k_shape: float = 1.0
     speckle_looks: float = 1.0
     range_resolution_m: float | None = None
+    downsample: str = "off"
+    sample_spacing_m: float | None = None
     spreading: bool = False
     absorption: bool = False
     temperature_c: float = 10.0
@@ -221,6 +237,11 @@ class Effects:
         if self.speckle not in SPECKLE_KINDS:
             raise SonarRasterError(
                 f"effects: unknown speckle {self.speckle!r}; use {', '.join(SPECKLE_KINDS)}"
+            )
+        if self.downsample not in DOWNSAMPLE_KINDS:
+            raise SonarRasterError(
+                f"effects: unknown downsample {self.downsample!r}; "
+                f"use {', '.join(DOWNSAMPLE_KINDS)}"
             )
         if self.tvg not in TVG_KINDS:
             raise SonarRasterError(f"effects: unknown tvg {self.tvg!r}; use {', '.join(TVG_KINDS)}")
@@ -481,6 +502,42 @@ def _volume_area(ctx: _Context) -> np.ndarray:
     return ctx.range_bin * ctx.ranges * ctx.beam_integral * width
 
 
+def subsamples_per_bin(fx: Effects, range_bin: float) -> int:
+    """Recorder sub-samples per recorded bin (1 when ``downsample`` is off).
+
+    ``round(range_bin / sample_spacing_m)``, at least 1.
+    """
+    if fx.downsample == "off" or fx.sample_spacing_m is None:
+        return 1
+    return max(1, round(range_bin / fx.sample_spacing_m))
+
+
+def _recorded_field(
+    shape: tuple[int, int],
+    fx: Effects,
+    ctx: _Context,
+    sigma_along: np.ndarray,
+    k_shape: float | None = None,
+    looks: float = 1.0,
+) -> np.ndarray | None:
+    """Unit-mean speckle made on the recorder's sub-sample grid, reduced per bin.
+
+    None when the recorder keeps one sample per bin.
+    """
+    from .along_track import FWHM_PER_SIGMA
+    from .speckle import recorded_speckle_field
+
+    n = subsamples_per_bin(fx, ctx.range_bin)
+    if n == 1:
+        return None
+    cell = fx.range_resolution_m
+    sigma_fine = 0.0 if cell is None else cell * n / (FWHM_PER_SIGMA * ctx.range_bin)
+    entropy = np.random.SeedSequence(int(ctx.rng.integers(2**63)))
+    return recorded_speckle_field(
+        shape, entropy, sigma_along, sigma_fine, n, fx.downsample, k_shape, looks
+    )
+
+
 def _speckle(data: np.ndarray, fx: Effects, ctx: _Context) -> np.ndarray:
     from .along_track import FWHM_PER_SIGMA
     from .speckle import speckle_field
@@ -488,7 +545,11 @@ def _speckle(data: np.ndarray, fx: Effects, ctx: _Context) -> np.ndarray:
     cell = fx.range_resolution_m
     sigma_range = 0.0 if cell is None else cell / (FWHM_PER_SIGMA * ctx.range_bin)
     nu = fx.k_shape if fx.speckle == "k" else None
-    field = speckle_field(data.shape, ctx.rng, ctx.sigma_along, sigma_range, nu, fx.speckle_looks)
+    field = _recorded_field(data.shape, fx, ctx, ctx.sigma_along, nu, fx.speckle_looks)
+    if field is None:
+        field = speckle_field(
+            data.shape, ctx.rng, ctx.sigma_along, sigma_range, nu, fx.speckle_looks
+        )
     return data * field
 
 
@@ -502,7 +563,11 @@ def _absorption(data: np.ndarray, fx: Effects, ctx: _Context) -> np.ndarray:
 
 def _noise(data: np.ndarray, fx: Effects, ctx: _Context) -> np.ndarray:
     assert fx.noise_db is not None
-    return data + ctx.rng.exponential(10.0 ** (fx.noise_db / 10.0), size=data.shape)
+    level = 10.0 ** (fx.noise_db / 10.0)
+    field = _recorded_field(data.shape, fx, ctx, np.zeros(data.shape[1]))
+    if field is None:
+        return data + ctx.rng.exponential(level, size=data.shape)
+    return data + level * field  # band-limited noise through the same downsampling
 
 
 def tvg_db(fx: Effects, ranges: np.ndarray, alpha_db_m: float) -> np.ndarray:

@@ -14,7 +14,7 @@ bandwidth B (chirp or CW), else ``c τ / 2`` for a pulse length τ.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from ..errors import SonarRasterError
 from ..sonar import SIDES, BeamPattern, Sonar
@@ -96,6 +96,11 @@ class SensorPreset:
     volume_db : float
         Volume backscattering strength Sv of the water column, dB re 1 m⁻¹ (an environment
         figure, not the sensor's: -75 dB, mid coastal water at a few hundred kHz).
+    downsample : {"off", "max", "mean"}
+        How the recorder reduces its samples to the recorded bins (XTF ``DownsampleMethod``:
+        2 = MAX, 4 = RMS); with "max" or "mean" the effects make speckle and noise on a
+        sub-sample grid of half the range resolution (the intensity envelope's Nyquist
+        spacing for a bandwidth ``1/τ`` or B) and reduce it per bin.
     speckle_looks : float
         Looks per recorded sample (see :class:`~sonar_raster.Effects`); 1 for every preset
         (no datasheet gives it; the real file suggests about 2.5 together with a patchy-seabed
@@ -130,6 +135,7 @@ class SensorPreset:
     far_snr_db: float = 10.0
     headroom_db: float = 12.0
     volume_db: float = -75.0
+    downsample: str = "off"
     speckle_looks: float = 1.0
     assumed: tuple[str, ...]
     sources: tuple[str, ...]
@@ -253,9 +259,10 @@ class SensorPreset:
 
         Along-track beam (horizontal beam width, or the SAS resolution), water-column volume
         reverberation (:attr:`volume_db`), exponential speckle correlated over the range
-        resolution cell, two-way spreading and absorption, receiver noise (:attr:`noise_db`),
-        the TVG law, a full scale :attr:`headroom_db` above the median, and quantisation of the
-        amplitude to the sensor's bit depth. ``sensor`` is the preset name.
+        resolution cell (made on the recorder's sub-samples and reduced per bin when
+        :attr:`downsample` is on), two-way spreading and absorption, receiver noise
+        (:attr:`noise_db`), the TVG law, a full scale :attr:`headroom_db` above the median, and
+        quantisation of the amplitude to the sensor's bit depth. ``sensor`` is the preset name.
         """
         sas = self.kind == "sas"
         return Effects(
@@ -266,6 +273,8 @@ class SensorPreset:
             noise_db=round(self.noise_db, 2),
             speckle="exponential",
             speckle_looks=self.speckle_looks,
+            downsample=self.downsample,
+            sample_spacing_m=self.sample_spacing_m,
             range_resolution_m=self.range_resolution_m,
             spreading=True,
             absorption=True,
@@ -276,6 +285,14 @@ class SensorPreset:
             quantise_amplitude=True,
         )
 
+    @property
+    def sample_spacing_m(self) -> float | None:
+        """Recorder sample spacing before downsampling, metres: half the range resolution.
+
+        None when the recorder keeps its samples (``downsample = "off"``).
+        """
+        return None if self.downsample == "off" else self.range_resolution_m / 2.0
+
     def table_row(self) -> dict[str, object]:
         """The preset as a flat mapping of field name to value (for listings and sidecars)."""
         row: dict[str, object] = {f: getattr(self, f) for f in self.__dataclass_fields__}
@@ -285,6 +302,7 @@ class SensorPreset:
 
 _MS_RANGE = 29.983501434326172  # SlantRange of every ping in the real file (the 30 m setting)
 _MS_BINS = 1024  # NumSamples per channel in the real file
+_MS_CYCLES = 10  # CW pulse length in cycles (assumed; not published, not in the file)
 
 PRESETS: dict[str, SensorPreset] = {
     p.name: p
@@ -506,6 +524,35 @@ PRESETS: dict[str, SensorPreset] = {
         ),
     )
 }
+
+# The recorder as the real file's headers describe it (DownsampleMethod 2 = MAX: each stored
+# sample the largest of several finer ones, so a pulse shorter than a stored sample). Not the
+# default: without seabed texture it measures further from the file than the one-look recorder
+# (docs/sensors.md, "the realism-physics pass").
+PRESETS["marine-sonic-600-max"] = replace(
+    PRESETS["marine-sonic-600"],
+    name="marine-sonic-600-max",
+    pulse_length_s=_MS_CYCLES / 600e3,
+    downsample="max",
+    notes=(
+        "From the real file's XTF headers (SonarName 'HDS', program 'SEASCAN' 3100): "
+        "ChanInfo.Frequency and ping Frequency 600 kHz; SlantRange 29.98 m (the 30 m "
+        "setting) with 1024 samples per side (2.93 cm bins); SoundVelocity 750 = half of "
+        "1500 m/s (2·SlantRange/TimeDuration = 1500); 2 bytes per sample, values 0-32767 "
+        "(16-bit words, 15 bits used; 16 taken, the nearest the effects offer). The file "
+        "leaves BandWidth, BeamWidth, HorizBeamAngle and TiltAngle at 0 (not recorded) and"
+        " no Marine Sonic datasheet figure was reachable here. Chosen: a CW pulse of 10 "
+        "cycles (16.7 µs, c τ / 2 = 1.25 cm; the file's ChanInfo leaves it out): the "
+        "file's DownsampleMethod = 2 (XTF: MAX) says each 2.93 cm sample is the largest of"
+        " several finer samples, so the pulse is shorter than a recorded sample "
+        "(docs/notes/2026-11-24-realism-physics.md); 50° vertical beam, 10° tilt (JW "
+        "Fishers' 600 kHz transducers sit 10° down); 30 log r TVG. Fitted to the file with"
+        " tools/compare_real.py (docs/sensors.md): 0.3° horizontal (= 0.886 λ/L for a 0.42"
+        " m array; 0.5° gave along-track speckle cells 1.2-1.8 times the file's), "
+        "far_snr_db 11 dB (the wreck shadow's 30 dB contrast), headroom 12 dB (median "
+        "sample 8160 of 32767)."
+    ),
+)
 
 
 #: The sensor whose effects ``render`` and ``dataset`` apply when none is named (the real file's).

@@ -164,6 +164,13 @@ def test_marine_sonic_preset_matches_the_real_files_header(xtf_header):
     assert 2 * c.SlantRange / c.TimeDuration == pytest.approx(p.sound_speed_m_s, rel=1e-3)
     assert {int(ci.BytesPerSample) for ci in fh.sonar_info} == {p.bits // 8}
     assert max(int(np.max(d)) for ping in pings for d in ping.data) < 2**p.bits
+    # Each recorded sample is the largest of several finer ones (XTF DownsampleMethod 2 = MAX):
+    # the -max variant's recorder does the same, with a pulse shorter than a recorded sample.
+    assert {int(c.DownsampleMethod) for c in chans} == {2}
+    m = preset("marine-sonic-600-max")
+    assert m.downsample == "max" and m.effects().downsample == "max"
+    assert m.range_resolution_m < sonar.range_bin
+    assert p.downsample == "off" and p.range_resolution_m == pytest.approx(sonar.range_bin)
     # What the file does not record is listed as chosen.
     assert {float(ci.BeamWidth) for ci in fh.sonar_info} == {0.0}
     assert {"horizontal_beamwidth_deg", "tilt_deg"} <= set(p.assumed)
