@@ -32,7 +32,7 @@ from _common import DOCS, parser, pyplot
 from scipy import ndimage
 
 from sonar_raster.inversion.bottom import track_bottom
-from sonar_raster.inversion.surface import fit_surface
+from sonar_raster.inversion.surface import Line, fit_lines
 from sonar_raster.rendering.gl.raster import RasterRenderer
 from sonar_raster.scene import build_scene
 from sonar_raster.scenes.seabed import from_grid
@@ -103,43 +103,72 @@ SEABEDS = {
 }
 
 
-def render(name: str, pings: int, looks: float):
-    """The heightfield, the track and the (speckled) sides of one seabed."""
+def render(name: str, pings: int, looks: float, lines: int = 1, overlap: float = 0.4):
+    """The heightfield, the tracks and the (speckled) sides of one seabed.
+
+    ``lines`` parallel lines, alternately north- and southbound (a lawnmower), spaced so
+    neighbouring swaths overlap by ``overlap`` of a swath's width.
+    """
     length = pings * SPACING
     height, refl = SEABEDS[name]
-    x = np.arange(-33.0, 33.0 + CELL / 2, CELL)
+    reach = math.sqrt(RANGE**2 - ALT**2)
+    spacing = 2.0 * reach * (1.0 - overlap)
+    offsets = [(k - (lines - 1) / 2) * spacing for k in range(lines)]
+    half = 33.0 + max(abs(o) for o in offsets)
+    x = np.arange(-half, half + CELL / 2, CELL)
     y = np.arange(-3.0, length + 3.0 + CELL / 2, CELL)
     xx, yy = np.meshgrid(x, y)
-    field = from_grid(height(xx, yy, length), CELL, CELL, x0=-33.0, y0=-3.0)
+    field = from_grid(height(xx, yy, length), CELL, CELL, x0=-half, y0=-3.0)
     r = np.full(xx.shape, 0.5) if refl is None else refl(xx, yy, length)
-    track = Trajectory.straight((0.0, 0.0, ALT), 0.0, SPACING, pings)
-    image = RasterRenderer().render(build_scene([field.mesh(r)]), SONAR, track)
-    sides = {k: v.astype(np.float64) for k, v in image.sides.items()}
-    if looks > 0:
-        rng = np.random.default_rng(zlib.crc32(name.encode()))
-        sides = {k: v * rng.gamma(looks, 1.0 / looks, v.shape) for k, v in sides.items()}
-    return field, track, sides
+    scene = build_scene([field.mesh(r)])
+    renderer = RasterRenderer()
+    rng = np.random.default_rng(zlib.crc32(name.encode()))
+    tracks, images = [], []
+    for k, offset in enumerate(offsets):
+        if k % 2 == 0:
+            track = Trajectory.straight((offset, 0.0, ALT), 0.0, SPACING, pings)
+        else:
+            track = Trajectory.straight((offset, (pings - 1) * SPACING, ALT), 180.0, SPACING, pings)
+        image = renderer.render(scene, SONAR, track)
+        sides = {k: v.astype(np.float64) for k, v in image.sides.items()}
+        if looks > 0:
+            sides = {k: v * rng.gamma(looks, 1.0 / looks, v.shape) for k, v in sides.items()}
+        tracks.append(track)
+        images.append(sides)
+    return field, tracks, images
 
 
-def score(field, track, fit, baseline: np.ndarray) -> tuple[float, float, float, float]:
+def score(field, fits, baselines) -> tuple[float, float, float, float]:
     """(fit, flat baseline) Z RMSE over the relief std, the fit's Z correlation, and the
-    fraction of cells whose error is within the fit's standard deviation (its coverage)."""
-    x = fit.x
-    keep = (x > 1.0) & (x < x[-1] - 2.0)
-    y = track.positions[:, 1]
-    fits, truths, flats, stds = [], [], [], []
-    for side, sign in (("port", -1.0), ("starboard", 1.0)):
-        xx, yy = np.meshgrid(sign * x[keep], y)
-        truths.append(field.height_at(xx, yy) - ALT)
-        fits.append(fit.elevation[side][:, keep])
-        flats.append(np.broadcast_to(-baseline[:, None], xx.shape))
-        stds.append(fit.elevation_std[side][:, keep])
-    t, f, b, s = (np.concatenate(a, axis=1) for a in (truths, fits, flats, stds))
+    fraction of cells whose error is within the fit's standard deviation (its coverage),
+    over every side of every line."""
+    fitted, truths, flats, stds = [], [], [], []
+    for fit, baseline in zip(fits, baselines, strict=True):
+        x = fit.x
+        keep = (x > 1.0) & (x < x[-1] - 2.0)
+        for side in fit.elevation:
+            where = fit.position[side][:, keep]
+            truths.append(field.height_at(where[..., 0], where[..., 1]) - ALT)
+            fitted.append(fit.elevation[side][:, keep])
+            flats.append(np.broadcast_to(-baseline[:, None], where.shape[:2]))
+            stds.append(fit.elevation_std[side][:, keep])
+    t, f, b, s = (np.concatenate([a.ravel() for a in v]) for v in (truths, fitted, flats, stds))
     std = float(np.std(t))
     rel = float(np.sqrt(np.mean((f - t) ** 2))) / std
     flat = float(np.sqrt(np.mean((b - t) ** 2))) / std
     coverage = float(np.mean(np.abs(f - t) < s))
-    return rel, flat, float(np.corrcoef(f.ravel(), t.ravel())[0, 1]), coverage
+    return rel, flat, float(np.corrcoef(f, t)[0, 1]), coverage
+
+
+def fit(tracks, images, joint: bool):
+    """The surface fit of every line together, or of each line alone."""
+    lines = [
+        Line(sides, BIN, t.positions[:, :2], t.headings)
+        for t, sides in zip(tracks, images, strict=True)
+    ]
+    if joint:
+        return fit_lines(lines)
+    return [fit_lines([line])[0] for line in lines]
 
 
 def main() -> None:
@@ -147,29 +176,38 @@ def main() -> None:
     cli.add_argument("--seabeds", default=",".join(SEABEDS))
     cli.add_argument("--looks", default="0,1", help="speckle looks per run (0: none)")
     cli.add_argument("--pings", type=int, default=200)
+    cli.add_argument("--lines", default="1", help="line counts to run, e.g. 1,3")
+    cli.add_argument("--overlap", type=float, default=0.4, help="swath overlap of neighbours")
+    cli.add_argument(
+        "--independent", action="store_true", help="with several lines, also fit each alone"
+    )
     args = cli.parse_args()
     rows = []
     print(
-        f"{'seabed':9s} {'looks':>5s} {'fit':>6s} {'flat':>6s} {'ratio':>6s} {'corr':>5s} "
-        f"{'1σ':>5s} {'s':>6s}"
+        f"{'seabed':9s} {'lines':>5s} {'looks':>5s} {'fit':>6s} {'flat':>6s} {'ratio':>6s} "
+        f"{'corr':>5s} {'1σ':>5s} {'s':>6s}"
     )
     for name in args.seabeds.split(","):
-        for looks in (float(v) for v in args.looks.split(",")):
-            field, track, sides = render(name, args.pings, looks)
-            start = time.perf_counter()
-            fit = fit_surface(sides, BIN, ping_spacing=SPACING)
-            seconds = time.perf_counter() - start
-            baseline = track_bottom(sides, BIN).altitude
-            rel, flat, corr, coverage = score(field, track, fit, baseline)
-            rows.append((name, looks, rel, flat, seconds))
-            print(
-                f"{name:9s} {looks:5g} {rel:6.3f} {flat:6.3f} {rel / flat:6.2f} {corr:5.2f} "
-                f"{coverage:5.2f} {seconds:6.1f}",
-                flush=True,
-            )
+        for count in (int(v) for v in args.lines.split(",")):
+            for looks in (float(v) for v in args.looks.split(",")):
+                field, tracks, images = render(name, args.pings, looks, count, args.overlap)
+                baselines = [track_bottom(sides, BIN).altitude for sides in images]
+                modes = [True, False] if args.independent and count > 1 else [True]
+                for joint in modes:
+                    start = time.perf_counter()
+                    fits = fit(tracks, images, joint)
+                    seconds = time.perf_counter() - start
+                    rel, flat, corr, coverage = score(field, fits, baselines)
+                    label = f"{count}" + ("" if joint or count == 1 else "x1")
+                    rows.append((name, looks, rel, flat, seconds, label))
+                    print(
+                        f"{name:9s} {label:>5s} {looks:5g} {rel:6.3f} {flat:6.3f} "
+                        f"{rel / flat:6.2f} {corr:5.2f} {coverage:5.2f} {seconds:6.1f}",
+                        flush=True,
+                    )
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 3.2))
-    labels = [f"{n}\n{'speckle' if lk else 'clean'}" for n, lk, *_ in rows]
+    labels = [f"{n}\n{'speckle' if lk else 'clean'}\n{c} line(s)" for n, lk, *_, c in rows]
     pos = np.arange(len(rows))
     ax.bar(pos - 0.2, [r[3] for r in rows], 0.4, label="flat at the first return", color="0.7")
     ax.bar(pos + 0.2, [r[2] for r in rows], 0.4, label="surface fit", color="tab:blue")

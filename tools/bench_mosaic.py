@@ -28,10 +28,10 @@ def swath_mask(result, raster) -> np.ndarray:
     from scipy.ndimage import binary_erosion
     from skimage.draw import polygon
 
-    from sonar_raster.inversion.xtf import _robust_track, ground_positions
+    from sonar_raster.inversion.xtf import ground_positions, robust_track
 
     nav = result.navigation
-    east, north = _robust_track(nav)
+    east, north = robust_track(nav)
     heading, pitch = nav.filled_heading(), nav.filled("pitch")
     far = {}
     for side, inv in result.sides.items():
@@ -54,9 +54,9 @@ def swath_mask(result, raster) -> np.ndarray:
 
 def nadir_contrast(result, raster, layer: np.ndarray) -> float:
     """Median of ``layer`` within 1 m of the track over its median 3-6 m out, dB."""
-    from sonar_raster.inversion.xtf import _robust_track
+    from sonar_raster.inversion.xtf import robust_track
 
-    east, north = _robust_track(result.navigation)
+    east, north = robust_track(result.navigation)
     rows, cols = np.nonzero(np.isfinite(layer) & (layer > 0))
     e = raster.west + (cols + 0.5) * raster.pixel
     n = raster.north - (rows + 0.5) * raster.pixel
@@ -72,10 +72,10 @@ def nadir_contrast(result, raster, layer: np.ndarray) -> float:
 
 def per_metre(result, pixel: float, crs, method: str):
     """The values the mosaic showed before (the per-metre ground image), gridded by ``method``."""
-    from sonar_raster.inversion.xtf import _robust_track, grid, ground_positions
+    from sonar_raster.inversion.xtf import grid, ground_positions, robust_track
 
     nav = result.navigation
-    east, north = _robust_track(nav)
+    east, north = robust_track(nav)
     samples = []
     for side, inv in result.sides.items():
         e, n = ground_positions(east, north, nav.filled_heading(), nav.filled("pitch"), inv.x,

@@ -6,9 +6,9 @@ The pipeline has three stages, each on plain data, so any one can be replaced:
    projected metres, heading, pitch, sensor depth, the first-return altitude). Each file is one
    line, or, with ``split``, the runs between turns of :func:`split_lines`; lines recorded
    with different sonar settings, or without navigation, are refused.
-2. :func:`invert_lines`: each line inverted on its own (both sides; ``method="surface"``
-   through :func:`.surface.invert_line`), giving side -> :class:`~.solver.Inversion` per line.
-   A joint fit of every line in one problem would replace this function only.
+2. :func:`invert_lines`: side -> :class:`~.solver.Inversion` per line: with
+   ``method="surface"`` every line in one surface fit (:func:`.surface.invert_lines`), with
+   ``"profiles"`` each side of each line on its own.
 3. :func:`line_samples` places each line's cells on the ground (:func:`.xtf.ground_positions`)
    in one vertical datum (:func:`vertical_datum`), and :func:`grid_lines` grids each line by
    footprints (:func:`.xtf.grid`) on one shared frame and combines the lines pixel by pixel
@@ -253,9 +253,9 @@ def _file_track(nav: Any, crs: str | None, path: Any) -> dict[str, Any]:
     than ``crs`` (the first file's) is transformed into it. Files in projected metres keep
     their coordinates (no CRS) and cannot join files in degrees.
     """
-    from .xtf import _robust_track
+    from .xtf import robust_track
 
-    east, north = _robust_track(nav)
+    east, north = robust_track(nav)
     if (crs is None) != (nav.crs is None):
         units = "degrees" if nav.crs else "projected metres"
         raise SonarRasterError(
@@ -377,17 +377,18 @@ def invert_lines(
     progress: bool = False,
     **options: Any,
 ) -> list[dict[str, Inversion]]:
-    """Invert each line on its own, both sides.
+    """Invert every line, both sides.
 
-    A joint fit of all lines in one problem replaces this function: the gridding
-    (:func:`line_samples`, :func:`grid_lines`) takes any side -> Inversion per line.
+    The gridding (:func:`line_samples`, :func:`grid_lines`) takes any side -> Inversion per
+    line, whichever method made it.
 
     Parameters
     ----------
     lines : sequence of Line
     method : {"profiles", "surface"}
         ``"profiles"``: :func:`.solver.invert` per side with the line's first-return altitude;
-        ``"surface"``: :func:`.surface.invert_line`, one surface for both sides.
+        ``"surface"``: :func:`.surface.invert_lines`, one surface for both sides of every
+        line (they share it where they overlap; one beam profile per side for all).
     altitude : float, optional
         A fixed altitude, metres, instead of the first return.
     progress : bool
@@ -403,13 +404,12 @@ def invert_lines(
     """
     if method not in ("profiles", "surface"):
         raise SonarRasterError(f"unknown method {method!r}; use profiles or surface")
+    if method == "surface":
+        return _surface(lines, altitude, progress, options)
     results = []
     for line in lines:
         n = len(line.pings)
         alt = np.full(n, float(altitude)) if altitude else None
-        if method == "surface":
-            results.append(_surface(line, alt, progress, options))
-            continue
         from .solver import invert
 
         results.append(
@@ -441,18 +441,29 @@ def surface_options(options: dict[str, Any]) -> dict[str, Any]:
 
 
 def _surface(
-    line: Line, alt: np.ndarray | None, progress: bool, options: dict
-) -> dict[str, Inversion]:
-    from .surface import invert_line
+    lines: Sequence[Line], altitude: float | None, progress: bool, options: dict
+) -> list[dict[str, Inversion]]:
+    """Every line in one surface fit (:func:`.surface.invert_lines`).
 
-    return invert_line(
-        line.sides,
-        line.range_bin,
-        ping_spacing=line.ping_spacing,
-        altitude=alt,
-        progress=print if progress else None,
-        **surface_options(options),
-    )
+    Where lines overlap they share the seabed, and Φ is shared by all; the transducer heights
+    come from the sensor depth when every line records it.
+    """
+    from .surface import Line as SurfaceLine
+    from .surface import invert_lines as fit_together
+
+    depth = all(line.has_depth for line in lines)
+    together = [
+        SurfaceLine(
+            line.sides,
+            line.range_bin,
+            np.stack([line.east, line.north], axis=1),
+            line.heading,
+            altitude=np.full(len(line.pings), float(altitude)) if altitude else None,
+            height=-line.depth if depth else None,
+        )
+        for line in lines
+    ]
+    return fit_together(together, progress=print if progress else None, **surface_options(options))
 
 
 def vertical_datum(lines: Sequence[Line]) -> str:

@@ -33,7 +33,7 @@ each:
   relative to the transducer; ``reflectivity.tif`` is R; ``mosaic.tif`` the evenly
   illuminated ground-range image (:func:`mosaic_values`).
 - PNG quick-looks of the products, with colour and scale bars: :func:`quicklook_jobs`.
-- ``method="surface"`` fits both sides as one surface (:func:`.surface.invert_line`); its
+- ``method="surface"`` fits both sides as one surface (:func:`.surface.invert_lines`); its
   ``elevation_std`` is gridded as a variance and written as ``elevation_std.tif``. Several
   files or lines are gridded together by :mod:`.lines`.
 """
@@ -150,7 +150,7 @@ def invert_xtf(
         Progress bars.
     method : {"profiles", "surface"}
         ``"profiles"``: :func:`.solver.invert` per side; ``"surface"``: one surface for both
-        sides (:func:`.surface.invert_line`, with ``elevation_std``).
+        sides (:func:`.surface.invert_lines`, with ``elevation_std``).
     **options
         Passed to :func:`.solver.invert` (``max_iter``, ``levels``, ``tol``,
         ``beam``); for ``"surface"`` only ``max_iter`` and ``looks``.
@@ -184,13 +184,15 @@ def invert_xtf(
         slant[:, :blank] = 0.0  # the transmit pulse is not seabed
     if method == "surface":
         from .lines import surface_options
-        from .surface import invert_line
+        from .surface import Line, invert_lines
 
-        results = invert_line(
-            slants, dr, ping_spacing=ping_spacing or dr,
+        line = Line.straight(
+            slants, dr, ping_spacing or dr,
             altitude=np.full(image.shape[0], float(altitude)) if altitude else None,
-            progress=print if progress else None, **surface_options(options),
         )  # fmt: skip
+        results = invert_lines(
+            [line], progress=print if progress else None, **surface_options(options)
+        )[0]
     elif method == "profiles":
         results = {
             side: invert(
@@ -521,7 +523,7 @@ def georeference(
     nav = result.navigation
     if not nav.valid.any():
         raise SonarRasterError("the file has no navigation: no GeoTIFF can be placed")
-    east, north = _robust_track(nav)
+    east, north = robust_track(nav)
     heading = nav.filled_heading()
     pitch = nav.filled("pitch")
     ok = nav.valid & np.isfinite(nav.depth)
@@ -603,7 +605,7 @@ def mosaic_values(inv) -> np.ndarray:
     return np.asarray(inv.ground if even is None else even, dtype=np.float64)
 
 
-def _robust_track(nav: XtfNavigation) -> tuple[np.ndarray, np.ndarray]:
+def robust_track(nav: XtfNavigation) -> tuple[np.ndarray, np.ndarray]:
     """Projected positions per ping, those that jump off the track interpolated."""
     east, north = nav.projected()
     jumps = track_jumps(east, north, nav.time)

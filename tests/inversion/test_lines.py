@@ -161,20 +161,23 @@ def _truth_line(calls: list, stds=(0.1, 0.2, 0.1)):
             )  # fmt: skip
         return out
 
-    return fake
+    def fake_lines(lines, **kwargs):  # the joint fit: one call, the lines in order
+        return [fake(line.sides, line.range_bin, ping_spacing=0.1, **kwargs) for line in lines]
+
+    return fake_lines
 
 
 def test_surface_lines_land_in_place_and_combine_by_inverse_variance(
     survey, tmp_path, capsys, monkeypatch
 ):
-    """``--method surface`` through invert_line (here a stand-in returning the truth with a
+    """``--method surface`` through invert_lines (here a stand-in returning the truth with a
     std of 0.1, 0.2, 0.1 m per line): every pixel holds the true seabed at its centre, the
     std where two or three lines overlap is 1 / sqrt(sum 1/σ²), and each line's products and
     elevation_std.tif are written."""
     from sonar_raster.inversion import surface
 
     calls: list = []
-    monkeypatch.setattr(surface, "invert_line", _truth_line(calls))
+    monkeypatch.setattr(surface, "invert_lines", _truth_line(calls))
     out = tmp_path / "inv"
     args = ["invert", *map(str, survey), "-o", str(out), "--method", "surface", "-q"]
     assert main([*args, "--no-mesh", "--no-previews", "--max-iter", "7"]) == 0
@@ -210,7 +213,7 @@ def test_one_xtf_with_method_surface_grids_its_std(survey, tmp_path, capsys, mon
     from sonar_raster.inversion import surface
 
     calls: list = []
-    monkeypatch.setattr(surface, "invert_line", _truth_line(calls))
+    monkeypatch.setattr(surface, "invert_lines", _truth_line(calls))
     out = tmp_path / "one"
     argv = ["invert", str(survey[0]), "-o", str(out), "--method", "surface", "--no-mesh"]
     assert main([*argv, "--no-previews", "-q"]) == 0, capsys.readouterr().err
@@ -231,7 +234,7 @@ def test_a_failing_product_leaves_no_file_of_any_line(survey, tmp_path, capsys, 
     def full(path, *args, **kwargs):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(surface, "invert_line", _truth_line([]))
+    monkeypatch.setattr(surface, "invert_lines", _truth_line([]))
     monkeypatch.setattr(quicklook, "mosaic_png", full)
     out = tmp_path / "inv"
     argv = ["invert", *map(str, survey), "-o", str(out), "--method", "surface", "--no-mesh"]
@@ -508,7 +511,7 @@ def test_line_pings_name_the_lines_of_one_file(tmp_path):
 
 @pytest.mark.slow
 def test_two_lines_through_the_real_surface_fit(survey, tmp_path, capsys):
-    """The real ``invert_line`` (few iterations): its per-side results carry what the gridding
+    """The real joint surface fit (few iterations): its per-side results carry what the gridding
     needs; the combined std is below every line's where they overlap, the level is the sea
     surface datum's and the mound is there."""
     out = tmp_path / "inv"

@@ -10,39 +10,43 @@ import pytest
 
 from sonar_raster.errors import SonarRasterError
 from sonar_raster.inversion import surface
+from sonar_raster.inversion.surface import layout, solve
+from sonar_raster.inversion.surface import problem as problem_module
+from sonar_raster.inversion.surface.problem import soft_shadow
 
 
-def _problem(seed: int = 0, shadows: bool = True):
+def _problem(seed: int = 0, shadows: bool = True, lines: int = 1):
+    """Random images on one line (or several overlapping ones) and parameters near the start."""
     rng = np.random.default_rng(seed)
     pings, bins, rb = 10, 110, 0.1
-    images = {
-        side: rng.gamma(1.0, 1.0, (pings, bins)) * (np.arange(bins) * rb > 5.0)
-        for side in ("port", "starboard")
-    }
-    extent = (0.0, (pings - 1) * 0.2, -10.0, 10.0)
-    problem, _ = surface._level(
-        images,
-        rb,
-        0.2,
-        np.full(pings, 5.0),
-        {"port": 1.0, "starboard": 2.0},
-        1,
-        (0.4, 0.4),
-        extent,
-        (math.atan2(5.0, 10.0), math.atan2(5.0, 0.05), 40),
-    )
-    p = surface._start(problem) + rng.normal(0.0, 0.05, problem.size)
+    made = []
+    for k in range(lines):
+        images = {
+            side: rng.gamma(1.0, 1.0, (pings, bins)) * (np.arange(bins) * rb > 5.0)
+            for side in ("port", "starboard")
+        }
+        position = np.stack([np.full(pings, 6.0 * k), np.arange(pings) * 0.2], axis=1)
+        heading = np.full(pings, 0.0 if k % 2 == 0 else math.pi)
+        if k % 2:
+            position = position[::-1].copy()
+        looks = 1.0 + k
+        made.append(layout.Line(images, rb, position, heading, np.full(pings, 5.0)))
+    problem = solve.problem_at(made, looks=looks, z_knot=0.4, r_knot=0.4)
+    p = solve._start(problem) + rng.normal(0.0, 0.05, problem.size)
     if shadows:  # two ridges across track cast shadows behind them
         zc = p[: problem.nz].reshape(problem.kz)
-        zc[:, problem.kz[1] // 2 + 12] += 1.0
-        zc[:, problem.kz[1] // 2 - 12] += 1.0
+        centre = int(np.argmin(np.abs(problem.grid.knots("z")[1])))
+        zc[:, centre + 12] += 1.0
+        zc[:, centre - 12] += 1.0
     return problem, p, rng
 
 
-def test_gradient_matches_central_differences():
-    problem, p, rng = _problem()
-    z = problem.fields(p, "starboard")[0]
-    shade = surface.soft_shadow(z, problem.layout.geom.x, problem.layout.tau)[0]
+@pytest.mark.parametrize("lines", [1, 2])
+def test_gradient_matches_central_differences(lines):
+    problem, p, rng = _problem(lines=lines)
+    view = problem.views[1]
+    z = problem.fields(p, view)[0]
+    shade = soft_shadow(z, view.geom.x, view.tau)[0]
     assert (shade < 0.5).mean() > 0.02  # the check covers shadowed cells
     _, grad = problem(p)
     picks = rng.choice(problem.size, 60, replace=False)
@@ -57,18 +61,10 @@ def test_gradient_matches_central_differences():
         assert grad[i] == pytest.approx(numeric, rel=2e-3, abs=1e-3 * (1 + abs(numeric)))
 
 
-def test_step_variables_are_an_exact_change_of_variables():
-    problem, p, rng = _problem(1, shadows=False)
-    assert np.allclose(problem.from_steps(problem.to_steps(p)), p)
-    u, g = rng.normal(size=p.size), rng.normal(size=p.size)
-    lhs = float(np.dot(g, problem.from_steps(u) - problem.from_steps(np.zeros_like(u))))
-    assert lhs == pytest.approx(float(np.dot(problem.steps_gradient(g), u)), rel=1e-10)
-
-
 def test_bspline_basis_reproduces_linear_functions():
     x = np.linspace(-3.0, 7.0, 101)
-    basis = surface.bspline_basis(x, -3.0, 7.0, 0.5)
-    centres = surface.knot_centres(-3.0, 7.0, 0.5)
+    basis = layout.bspline_basis(x, -3.0, 7.0, 0.5)
+    centres = layout.knot_centres(-3.0, 7.0, 0.5)
     assert basis.shape == (101, centres.size)
     assert np.allclose(basis.sum(axis=1), 1.0)
     assert np.allclose(basis @ (2.0 * centres - 1.0), 2.0 * x - 1.0)
@@ -78,7 +74,7 @@ def test_soft_shadow_follows_the_line_of_sight():
     x = np.arange(1, 201) * 0.05
     z = np.full((1, x.size), -5.0)
     z[0, 99] = -4.0  # a post at 5 m, 1 m high: shadow to 5 * 5 / 4 = 6.25 m
-    shade, occluder, _ = surface.soft_shadow(z, x, np.full(x.size, 1e-4))
+    shade, occluder, _ = soft_shadow(z, x, np.full(x.size, 1e-4))
     dark = x[shade[0] < 0.5]
     assert dark.min() == pytest.approx(5.05, abs=1e-9)
     assert dark.max() == pytest.approx(6.25, abs=0.05)
@@ -92,10 +88,12 @@ def test_refuses_bad_input():
         surface.fit_surface({"port": np.ones((4, 50))}, 0.1, ping_spacing=0.0)
 
 
-def test_prior_gradients_match_central_differences_everywhere():
-    problem, p, rng = _problem(2)
+@pytest.mark.parametrize("lines", [1, 2])
+def test_prior_gradients_match_central_differences_everywhere(lines):
+    problem, p, rng = _problem(2, lines=lines)
     # every prior acts: the line profile and relief differ from the flat seabed, log R has a mean
     problem.flat = p[: problem.nz].reshape(problem.kz) + rng.normal(0.0, 0.05, problem.kz)
+    problem.views[0].altitude[3] = np.nan  # a ping without a first return
     p[problem.nz : problem.nz + problem.nr] += 0.5
 
     def priors(q):
@@ -183,7 +181,7 @@ def test_speckled_sand_waves_beat_a_flat_seabed_because_pings_share_the_surface(
         # without the prior that ties neighbouring pings' heights, each ping is fitted from its
         # own speckle
         with monkeypatch.context() as patch:
-            patch.setattr(surface, "CURVATURE_STD_ALONG", 1e6)
+            patch.setattr(problem_module, "CURVATURE_STD_ALONG", 1e6)
             alone = surface.fit_surface(sides, rb, ping_spacing=spacing, uncertainty=False)
         apart.append(_errors(alone, field, track, alt, baseline)[0])
     print("shared", shared, "apart", apart, "flat", flat)
@@ -204,3 +202,58 @@ def test_cli_surface_method_writes_both_sides_with_their_std(tmp_path):
         assert {"elevation.exr", "elevation_std.exr", "reflectivity.exr"} <= names
     assert main([*args, "--beam", str(image), "-o", str(tmp_path / "other")]) == 2
     assert not (tmp_path / "other").exists()
+
+
+@pytest.mark.parametrize("lines", [1, 2])
+def test_fisher_jacobian_includes_the_beam_at_the_true_depression_angle(lines):
+    """The Gauss-Newton Jacobian wrt the Z knots (R, Φ nodes and shadows held) equals the
+    model image's central differences, the beam's change of depression angle included."""
+    from sonar_raster.inversion.model import forward
+
+    problem, p, rng = _problem(2, shadows=False, lines=lines)
+    start = problem.nz + problem.nr
+    p[start:] += np.linspace(0.0, 3.0, p.size - start)  # a steep beam: ∂Φ/∂θ matters
+    _, jacobians = solve._fisher_z(problem, p)
+    assert len(jacobians) == 2 * lines
+    for view, jac in zip(problem.views, jacobians, strict=True):
+
+        def image(q, view=view):
+            z, r, beam = problem.fields(q, view)
+            return forward(r, beam.phi, z, view.geom) + view.floor
+
+        mu = image(p)
+        weight = np.sqrt(np.where(view.mask, view.looks / (mu * mu), 0.0)).ravel()
+        direction = np.zeros(p.size)
+        direction[: problem.nz] = rng.normal(0.0, 1.0, problem.nz)
+        step = 1e-6
+        numeric = (image(p + step * direction) - image(p - step * direction)) / (2 * step)
+        analytic = jac @ direction[: problem.nz]
+        expected = weight * numeric.ravel()
+        assert np.abs(analytic - expected).max() < 2e-3 * np.abs(expected).max()
+
+
+def test_cells_land_where_the_sonar_looked():
+    """A line heading east: starboard cells lie south of the track, port cells north, in the
+    lines' own frame, whatever the fit's frame (set by the first line, heading north-east)."""
+    first = layout.Line({"port": np.ones((3, 10))}, 0.1, np.zeros((3, 2)), np.full(3, math.pi / 4))
+    frame = layout.Frame.of([first])
+    position = np.array([[10.0, 20.0], [11.0, 20.0]])
+    heading = np.full(2, math.pi / 2)
+    for side, north in (("starboard", 15.0), ("port", 25.0)):
+        y, x = layout.cell_points(frame, position, heading, side, np.array([5.0]))
+        world = frame.to_world(y, x)
+        assert np.allclose(world[:, 0, 0], [10.0, 11.0])
+        assert np.allclose(world[:, 0, 1], north)
+
+
+def test_tensor_basis_is_the_kronecker_product_on_a_grid():
+    extent = (0.0, 2.0, -3.0, 3.0)
+    y, x = np.meshgrid(np.linspace(0.1, 1.9, 7), np.linspace(-2.9, 2.9, 9), indexing="ij")
+    basis = layout.tensor_basis(y.ravel(), x.ravel(), extent, 0.5)
+    by = layout.bspline_basis(y[:, 0], 0.0, 2.0, 0.5)
+    bx = layout.bspline_basis(x[0], -3.0, 3.0, 0.5)
+    assert np.allclose(basis.toarray(), sparse_kron(by, bx))
+
+
+def sparse_kron(a, b):
+    return np.kron(a.toarray(), b.toarray())

@@ -1,0 +1,417 @@
+"""The surface fit's objective: the speckle likelihood of every view plus the priors.
+
+The image model is :mod:`..model`'s (each ground cell's Lambertian return at its own slant
+range, so foreshortening and layover are modelled) with Φ at each cell's own depression angle
+``atan2(−Z, x)``, times a soft cast-shadow factor ``S = exp(min(0, (Z/x − M) / τ))`` (``M`` the
+largest ``Z/x`` of the nearer cells of the ping, ``τ`` one cell's angle on the flat seabed),
+plus the noise floor. Its fit to the data is the L-look Gamma likelihood of speckle,
+``L Σ (I/μ + log μ)``; the gradient is exact (tests/inversion/test_surface.py).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from ..model import adjoint, forward
+from .layout import View, bspline_basis, knot_centres
+
+#: Standard deviations of the seabed's curvature across and along track assumed by the prior
+#: on Z, 1/m (in data units: that curvature costs one nat per knot and look).
+CURVATURE_STD = 30.0
+CURVATURE_STD_ALONG = 3.0
+#: Weight of the reflectivity's edge-preserving roughness, in nats of data per R knot (per
+#: unit look) for a jump of one in log R, and its ε (log R differences below ε cost
+#: quadratically).
+REFLECTIVITY_WEIGHT = 0.5
+REFLECTIVITY_EDGE = 0.05
+#: Weight of the curvature of log Φ against angle, in the same units, per node.
+BEAM_WEIGHT = 10.0
+#: Standard deviation of the first-return altitude, in range bins.
+ANCHOR_BINS = 4.0
+#: Standard deviation of the relief about the flat seabed at the first return, metres (None:
+#: no such prior). The image hardly fixes a broad bending of Z that the beam can absorb.
+RELIEF_STD: float | None = 0.3
+#: Weight of the prior holding each view's line-averaged across-track profile of Z at the flat
+#: seabed: a mean deviation of one range bin costs this many nats per knot and look (0: none).
+LINE_PROFILE_WEIGHT = 1.0
+#: Across-track scale of that prior's low-pass, as a fraction of the altitude.
+LINE_PROFILE_SCALE = 0.25
+
+
+@dataclass(frozen=True)
+class Grid:
+    """The knot grids of Z and log R and the beam's angle nodes, shared by every view."""
+
+    extent: tuple[float, float, float, float]  # y0, y1, X0, X1 in the frame
+    z_spacing: float
+    r_spacing: float
+    angles: tuple[float, float]  # depression angles of the first and last Φ node
+    nodes: int
+    sides: tuple[str, ...]  # one Φ profile per side, shared by every line
+
+    def knots(self, which: str) -> tuple[np.ndarray, np.ndarray]:
+        """Centres (y, X) of the Z (``"z"``) or log R (``"r"``) basis functions."""
+        y0, y1, x0, x1 = self.extent
+        s = self.z_spacing if which == "z" else self.r_spacing
+        return knot_centres(y0, y1, s), knot_centres(x0, x1, s)
+
+    def sample(self, coefs: np.ndarray, points: tuple[np.ndarray, np.ndarray], which: str):
+        """The Z or log R spline with coefficients ``coefs`` (ky, kx) on the grid ``points``."""
+        y0, y1, x0, x1 = self.extent
+        s = self.z_spacing if which == "z" else self.r_spacing
+        by = bspline_basis(points[0], y0, y1, s)
+        bx = bspline_basis(points[1], x0, x1, s)
+        return np.asarray((bx @ (by @ coefs).T).T)
+
+
+@dataclass(frozen=True)
+class Beam:
+    """Φ per cell, (pings, cells): its value, lower node, weight of the upper node, ∂Φ/∂Z."""
+
+    phi: np.ndarray
+    index: np.ndarray
+    weight: np.ndarray
+    dz: np.ndarray
+
+
+class Problem:
+    """The objective of one level and its gradient.
+
+    Parameters
+    ----------
+    views : sequence of View
+        Every side of every line at this level.
+    grid : Grid
+        The knots and Φ nodes.
+    flat : ndarray, shape (ky, kx)
+        Z knots of the flat seabed at the first returns (the start and the priors' reference).
+    """
+
+    def __init__(self, views: Sequence[View], grid: Grid, flat: np.ndarray) -> None:
+        self.views = list(views)
+        self.grid = grid
+        self.flat = flat
+        self.kz: tuple[int, int] = tuple(len(k) for k in grid.knots("z"))  # type: ignore[assignment]
+        self.kr = tuple(len(k) for k in grid.knots("r"))
+        self.nz = self.kz[0] * self.kz[1]
+        self.nr = self.kr[0] * self.kr[1]
+        self.size = self.nz + self.nr + grid.nodes * len(grid.sides)
+        pixels = sum(float(np.sum(v.mask)) for v in self.views)
+        mean_looks = float(np.mean([v.looks for v in self.views]))
+        per_knot = mean_looks * pixels / max(self._seen_knots(), 1)
+        self.w_z = per_knot / (2.0 * CURVATURE_STD**2)
+        self.w_z_along = per_knot / (2.0 * CURVATURE_STD_ALONG**2)
+        self.w_r = REFLECTIVITY_WEIGHT * mean_looks * pixels / max(self.nr, 1)
+        self.w_phi = BEAM_WEIGHT * mean_looks * pixels / max(grid.nodes * len(grid.sides), 1)
+        self.w_gauge = mean_looks * pixels * 1e-3
+        self.w_line = LINE_PROFILE_WEIGHT * per_knot / self.views[0].geom.range_bin ** 2
+        #: The objective's natural size (L per used bin), by which the minimiser divides it.
+        self.norm = max(mean_looks * pixels, 1.0)
+        #: One view per line carries its first-return anchor.
+        self.anchored: dict[int, int] = {}
+        for i, v in enumerate(self.views):
+            self.anchored.setdefault(v.line, i)
+
+    def _seen_knots(self) -> int:
+        seen = np.zeros(self.nz, bool)
+        for v in self.views:
+            seen |= np.asarray(abs(v.bz).sum(axis=0)).ravel() > 0
+        return int(seen.sum())
+
+    def scales(self) -> np.ndarray:
+        """Typical step of each parameter: a range bin for Z, 0.1 in log R and log Φ."""
+        out = np.full(self.size, 0.1)
+        out[: self.nz] = self.views[0].geom.range_bin
+        return out
+
+    # -- parameters -------------------------------------------------------------------------
+    def split(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+        """Z knots (ky, kx), log R knots and log Φ nodes per side from the parameter vector."""
+        zc = p[: self.nz].reshape(self.kz)
+        rc = p[self.nz : self.nz + self.nr].reshape(self.kr)
+        start, n = self.nz + self.nr, self.grid.nodes
+        lphi = {s: p[start + i * n : start + (i + 1) * n] for i, s in enumerate(self.grid.sides)}
+        return zc, rc, lphi
+
+    def phi_slice(self, side: str) -> slice:
+        """Where the log Φ nodes of ``side`` sit in the parameter vector."""
+        i, n = self.grid.sides.index(side), self.grid.nodes
+        start = self.nz + self.nr + i * n
+        return slice(start, start + n)
+
+    def fields(self, p: np.ndarray, view: View) -> tuple[np.ndarray, np.ndarray, Beam]:
+        """Z (relative to the transducer), R and the beam of one view, (pings, cells) each."""
+        zc, rc, lphi = self.split(p)
+        z = self.z_of(view, zc)
+        r = np.exp(np.asarray(view.br @ rc.ravel()).reshape(view.shape))
+        return z, r, self.beam(view, lphi[view.side], z)
+
+    def z_of(self, view: View, zc: np.ndarray) -> np.ndarray:
+        """The view's Z relative to its transducer from Z knots."""
+        return np.asarray(view.bz @ zc.ravel()).reshape(view.shape) - view.height[:, None]
+
+    def beam(self, view: View, lphi: np.ndarray, z: np.ndarray) -> Beam:
+        """Φ per cell at its depression angle ``atan2(−Z, x)`` (linear in log Φ between nodes)."""
+        lo, hi = self.grid.angles
+        n = self.grid.nodes
+        x = view.geom.x[None, :]
+        theta = np.arctan2(-z, x)
+        pos = (theta - lo) * ((n - 1) / (hi - lo))
+        inside = (pos >= 0.0) & (pos <= n - 1)
+        pos = np.clip(pos, 0.0, n - 1)
+        index = np.minimum(pos.astype(np.int64), n - 2)
+        w = pos - index
+        low, high = lphi[index], lphi[index + 1]
+        phi = np.exp(low + w * (high - low))
+        # ∂Φ/∂Z = Φ ∂logΦ/∂θ ∂θ/∂Z, ∂θ/∂Z = −x / (x² + Z²); flat beyond the end nodes
+        dtheta = np.where(inside, (high - low) * ((n - 1) / (hi - lo)), 0.0)
+        return Beam(phi, index, w, phi * dtheta * (-x / (x * x + z * z)))
+
+    def beam_gradient(self, beam: Beam, g_phi: np.ndarray) -> np.ndarray:
+        """Gradient wrt the log Φ nodes from ``∂E/∂Φ`` per cell."""
+        n = self.grid.nodes
+        g = g_phi * beam.phi
+        w = beam.weight
+        return np.bincount(beam.index.ravel(), ((1.0 - w) * g).ravel(), n) + np.bincount(
+            beam.index.ravel() + 1, (w * g).ravel(), n
+        )
+
+    # -- objective --------------------------------------------------------------------------
+    def __call__(self, p: np.ndarray) -> tuple[float, np.ndarray]:
+        """Objective and its gradient."""
+        zc, rc, lphi = self.split(p)
+        grad = np.zeros_like(p)
+        g_z = grad[: self.nz]
+        g_r = grad[self.nz : self.nz + self.nr]
+        total = 0.0
+        for view in self.views:
+            z, r, beam = self.fields(p, view)
+            value, gz, gr, gphi = view_objective(view, r, beam.phi, z)
+            total += value
+            g_z += view.bz.T @ (gz + gphi * beam.dz).ravel()
+            g_r += view.br.T @ (gr * r).ravel()
+            grad[self.phi_slice(view.side)] += self.beam_gradient(beam, gphi)
+        total += self._priors(zc, rc, lphi, grad)
+        return total, grad
+
+    def _priors(
+        self, zc: np.ndarray, rc: np.ndarray, lphi: Mapping[str, np.ndarray], grad: np.ndarray
+    ) -> float:
+        grid = self.grid
+        g_zc = grad[: self.nz].reshape(self.kz)
+        g_rc = grad[self.nz : self.nz + self.nr].reshape(self.kr)
+        total = 0.0
+        for axis, w in ((0, self.w_z_along), (1, self.w_z)):
+            value, g = second_difference(zc, axis, grid.z_spacing, w)
+            total += value
+            g_zc += g
+        if RELIEF_STD is not None:
+            w = grid.z_spacing**2 / (2.0 * RELIEF_STD**2)
+            d = zc - self.flat
+            total += w * float(np.sum(d * d))
+            g_zc += 2.0 * w * d
+        if self.w_line > 0:
+            value, g = line_profile(self, (zc - self.flat).ravel())
+            total += value
+            g_zc += g.reshape(self.kz)
+        value, g = self._anchor(zc)
+        total += value
+        g_zc += g.reshape(self.kz)
+        for axis in (0, 1):
+            value, g = charbonnier(rc, axis, REFLECTIVITY_EDGE, self.w_r)
+            total += value
+            g_rc += g
+        mean = float(np.mean(rc))
+        total += self.w_gauge * mean * mean
+        g_rc += 2.0 * self.w_gauge * mean / rc.size
+        for side in grid.sides:
+            value, g = second_difference(lphi[side], 0, 1.0, self.w_phi)
+            total += value
+            grad[self.phi_slice(side)] += g
+        return total
+
+    def anchor_std(self, view: View) -> float:
+        """Standard deviation of the first-return altitude, metres."""
+        return ANCHOR_BINS * view.geom.range_bin
+
+    def _anchor(self, zc: np.ndarray) -> tuple[float, np.ndarray]:
+        """Each line's nadir at its first-return altitude below the transducer."""
+        total, grad = 0.0, np.zeros(self.nz)
+        for i in self.anchored.values():
+            view = self.views[i]
+            known = np.isfinite(view.altitude)
+            zn = np.asarray(view.nadir @ zc.ravel()) - view.height
+            res = np.where(known, zn + np.nan_to_num(view.altitude), 0.0)
+            w = 1.0 / (2.0 * self.anchor_std(view) ** 2)
+            total += w * float(np.sum(res * res))
+            grad += view.nadir.T @ (2.0 * w * res)
+        return total, grad
+
+
+def view_objective(
+    view: View, r: np.ndarray, phi: np.ndarray, z: np.ndarray
+) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
+    """Gamma negative log-likelihood of one view and its gradients wrt per-cell Z, R and Φ.
+
+    Returns ``(value, ∂/∂Z, ∂/∂R, ∂/∂Φ)`` (Φ held for ∂/∂Z), each (pings, cells);
+    ``value = L Σ_mask (I/μ + log μ)``, μ the model plus the noise floor.
+    """
+    geom = view.geom
+    shade, occluder, slope_ = soft_shadow(z, geom.x, view.tau)
+    mu = forward(r * shade, phi, z, geom) + view.floor
+    ratio = view.image / mu
+    value = view.looks * float(np.sum(np.where(view.mask, ratio + np.log(mu), 0.0)))
+    g_mu = np.where(view.mask, view.looks * (1.0 - ratio) / mu, 0.0)
+    g_reff, g_phi, g_z = adjoint(g_mu, r * shade, phi, z, geom)
+    g_z = g_z + shadow_adjoint(g_reff * r, occluder, slope_, geom.x)
+    return value, g_z, g_reff * shade, g_phi
+
+
+def soft_shadow(
+    z: np.ndarray, x: np.ndarray, tau: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Cast-shadow factor per cell, the occluding cell and ``∂S/∂(Z/x)``.
+
+    ``S = exp(min(0, (Z/x − M)/τ))`` with ``M`` the largest ``Z/x`` among the nearer cells of
+    the ping (the cell that sets it is the occluder). 1 where nothing nearer rises above the
+    line of sight.
+
+    Parameters
+    ----------
+    z : ndarray, shape (pings, cells)
+        Elevation relative to the transducer.
+    x : ndarray, shape (cells,)
+        Ground ranges, increasing.
+    tau : ndarray, shape (cells,)
+        Softness in ``Z/x`` units.
+
+    Returns
+    -------
+    shade : ndarray, shape (pings, cells)
+    occluder : ndarray, shape (pings, cells), int64
+        Column of the occluding cell (0 where unshadowed).
+    slope : ndarray, shape (pings, cells)
+        ``∂S/∂(Z_j/x_j)`` (0 where unshadowed); ``∂S/∂(Z_m/x_m) = −slope`` for the occluder.
+    """
+    v = z / x[None, :]
+    top = np.maximum.accumulate(v, axis=1)
+    cols = np.broadcast_to(np.arange(v.shape[1]), v.shape)
+    where = np.maximum.accumulate(np.where(v >= top, cols, 0), axis=1)
+    horizon = np.full_like(v, -np.inf)
+    horizon[:, 1:] = top[:, :-1]
+    occluder = np.zeros(v.shape, np.int64)
+    occluder[:, 1:] = where[:, :-1]
+    u = np.minimum((v - horizon) / tau[None, :], 0.0)
+    shade = np.exp(u)
+    slope_ = np.where(u < 0.0, shade / tau[None, :], 0.0)
+    return shade, occluder, slope_
+
+
+def shadow_adjoint(
+    g_shade: np.ndarray, occluder: np.ndarray, slope_: np.ndarray, x: np.ndarray
+) -> np.ndarray:
+    """``∂E/∂Z`` through the shadow factor, given ``∂E/∂S`` and :func:`soft_shadow`'s terms.
+
+    Each shadowed cell's term ``g slope / x_j`` on itself and ``−g slope / x_m`` on its
+    occluder m, shape (pings, cells).
+    """
+    g = g_shade * slope_
+    pings, cells = g.shape
+    flat = (np.arange(pings)[:, None] * cells + occluder).ravel()
+    back = np.bincount(flat, g.ravel(), pings * cells).reshape(pings, cells)
+    return (g - back) / x[None, :]
+
+
+def second_difference(
+    values: np.ndarray, axis: int, step: float, weight: float
+) -> tuple[float, np.ndarray]:
+    """``weight Σ (Δ² v / step²)²`` along ``axis`` and its gradient."""
+    v = np.moveaxis(values, axis, 0)
+    grad = np.zeros_like(v)
+    if v.shape[0] < 3:
+        return 0.0, np.moveaxis(grad, 0, axis)
+    d = (v[2:] - 2.0 * v[1:-1] + v[:-2]) / step**2
+    g = 2.0 * weight * d / step**2
+    grad[2:] += g
+    grad[1:-1] -= 2.0 * g
+    grad[:-2] += g
+    return weight * float(np.sum(d * d)), np.moveaxis(grad, 0, axis)
+
+
+def charbonnier(
+    values: np.ndarray, axis: int, edge: float, weight: float
+) -> tuple[float, np.ndarray]:
+    """``weight Σ 2ε (sqrt(Δv² + ε²) − ε)`` along ``axis`` and its gradient."""
+    v = np.moveaxis(values, axis, 0)
+    grad = np.zeros_like(v)
+    if v.shape[0] < 2:
+        return 0.0, np.moveaxis(grad, 0, axis)
+    d = v[1:] - v[:-1]
+    s = np.sqrt(d * d + edge * edge)
+    g = weight * 2.0 * edge * d / s
+    grad[1:] += g
+    grad[:-1] -= g
+    return weight * 2.0 * edge * float(np.sum(s - edge)), np.moveaxis(grad, 0, axis)
+
+
+def line_profile(problem: Problem, dev: np.ndarray) -> tuple[float, np.ndarray]:
+    """The line-profile prior on the Z knots' deviation ``dev`` (nz,) from the flat seabed.
+
+    Φ, shared along a line, absorbs any bend of Z that every ping of the line shares, so the
+    image cannot fix it: per view, the across-track profile of the deviation averaged over the
+    line's pings, taken relative to the line's nadir (whose level the first return fixes) and
+    low-passed (a smooth Φ absorbs only a broad bend), is held at zero. Quadratic in ``dev``,
+    so its gradient at ``v`` is also its Hessian times ``v``. Returns the value and the
+    gradient (nz,).
+    """
+    value, grad = 0.0, np.zeros(problem.nz)
+    spacing = problem.grid.z_spacing
+    for view in problem.views:
+        pings, cells = view.shape
+        d = np.asarray(view.bz @ dev).reshape(pings, cells)
+        at = np.asarray(view.nadir @ dev)
+        m = d.mean(axis=0) - float(at.mean())
+        sigma = LINE_PROFILE_SCALE * float(np.nanmedian(view.altitude)) / view.geom.dx
+        low = ndimage.gaussian_filter1d(m, sigma, mode="constant")
+        # per knot along the line and across it, as in data units elsewhere
+        w = problem.w_line * (pings * view.geom.dy / spacing) * (view.geom.dx / spacing)
+        value += w * float(np.sum(low * low))
+        g_m = ndimage.gaussian_filter1d(2.0 * w * low, sigma, mode="constant")
+        g_d = np.broadcast_to(g_m[None, :] / pings, (pings, cells))
+        grad += view.bz.T @ np.ascontiguousarray(g_d).ravel()
+        grad -= view.nadir.T @ np.full(pings, float(np.sum(g_m)) / pings)
+    return value, grad
+
+
+def flat_start_knots(views: Sequence[View], grid: Grid, kz: tuple[int, int]) -> np.ndarray:
+    """Z knots of a seabed flat across the lines at each line's first-return level.
+
+    Least squares of the knots to the nadir levels (transducer height minus altitude) with a
+    strong first-difference penalty across track and a weak second difference along it.
+    """
+    from scipy.sparse import diags, identity, kron, vstack
+    from scipy.sparse.linalg import lsqr
+
+    ky, kx = kz
+    rows, rhs = [], []
+    for v in views:
+        known = np.isfinite(v.altitude)
+        rows.append(v.nadir[known])
+        rhs.append((v.height - v.altitude)[known])
+    a = vstack(rows)
+    b = np.concatenate(rhs)
+    level = float(np.median(b))
+    scale = math.sqrt(max(a.shape[0], 1) / max(ky * kx, 1))
+    d1 = diags([-1.0, 1.0], [0, 1], shape=(kx - 1, kx))
+    d2 = diags([1.0, -2.0, 1.0], [0, 1, 2], shape=(max(ky - 2, 1), ky))
+    across = 10.0 * scale * kron(identity(ky), d1)
+    along = 0.1 * scale * kron(d2, identity(kx))
+    system = vstack([a, across, along]).tocsr()
+    target = np.concatenate([b - level, np.zeros(system.shape[0] - a.shape[0])])
+    coef = lsqr(system, target, damp=1e-3, atol=1e-10, btol=1e-10)[0] + level
+    return coef.reshape(kz)

@@ -1,0 +1,604 @@
+"""Fitting the surface: levels coarse to fine, Gauss-Newton on Z, L-BFGS on R and Φ.
+
+Also the Laplace uncertainty of Z.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from functools import partial
+
+import numpy as np
+from scipy import optimize, sparse
+
+from ...errors import SonarRasterError
+from ..model import Geometry, forward, jacobian_z, slope
+from . import problem as prob
+from .layout import (
+    Frame,
+    Line,
+    View,
+    cell_points,
+    check_lines,
+    pool,
+    pool_heading,
+    pool_image,
+    tensor_basis,
+)
+from .problem import Grid, Problem, flat_start_knots, line_profile, soft_shadow
+
+#: Knot spacing of Z and of log R in range bins when not given.
+Z_KNOT_BINS = 4.0
+R_KNOT_BINS = 4.0
+#: Points per ground cell in the model (sonar_raster.inversion.model).
+SUBSAMPLES = 2
+#: Largest number of looks the likelihood trusts (the model's own error on clean images).
+MAX_LOOKS = 30.0
+#: Gauss-Newton steps on the Z knots per level (each followed by L-BFGS on R and Φ); 0: plain
+#: L-BFGS on everything.
+GAUSS_NEWTON_STEPS = 8
+#: L-BFGS iterations on R and Φ after each Gauss-Newton step.
+INNER_ITERATIONS = 20
+#: A restart of L-BFGS after its line search failed must lower E by this much (E is divided by
+#: looks × bins, so per bin) for another restart.
+RESTART_GAIN = 1e-6
+#: Ground cells whose slant range at the altitude lies within this many bins of the image's
+#: end get no estimate (NaN) in the per-side results.
+EDGE_BINS = 6
+#: Depression-angle nodes of log Φ, per degree.
+BEAM_NODES_PER_DEGREE = 1.0
+
+#: SuperLU settings for the symmetric positive definite Gauss-Newton matrix (minimum degree on
+#: A + Aᵀ, diagonal pivots): 3.5x faster factorisation than the defaults at 29k knots.
+SYMMETRIC_LU = {
+    "permc_spec": "MMD_AT_PLUS_A",
+    "diag_pivot_thresh": 0.0,
+    "options": {"SymmetricMode": True},
+}
+
+Progress = Callable[[str], None]
+
+
+@dataclass
+class SurfaceFit:
+    """Result of the fit for one line; maps are (pings, ground cells) per side.
+
+    Attributes
+    ----------
+    x : ndarray, shape (cells,)
+        Ground-range cell centres, metres (on each side).
+    elevation, reflectivity, beam : dict of str to ndarray
+        Z (metres relative to the transducer), R and Φ per side.
+    elevation_std : dict of str to ndarray
+        Standard deviation of Z per cell, metres (Laplace approximation; see
+        :func:`elevation_std`); empty without ``uncertainty``.
+    profile : dict of str to (ndarray, ndarray)
+        Per side, depression angles (radians) and Φ there (shared by every line).
+    looks : dict of str to float
+        Looks used by the likelihood per side.
+    altitude : ndarray, shape (pings,)
+        First-return (or given) altitude per ping, metres.
+    position : dict of str to ndarray, each shape (pings, cells, 2)
+        Where each cell is, in the lines' frame (e.g. easting, northing), metres.
+    energies : list of float
+        Objective after each level (of the joint fit of every line).
+    evaluations : list of int
+        Objective evaluations per level.
+    """
+
+    x: np.ndarray
+    elevation: dict[str, np.ndarray]
+    reflectivity: dict[str, np.ndarray]
+    beam: dict[str, np.ndarray]
+    elevation_std: dict[str, np.ndarray]
+    profile: dict[str, tuple[np.ndarray, np.ndarray]]
+    looks: dict[str, float]
+    altitude: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    position: dict[str, np.ndarray] = field(default_factory=dict)
+    energies: list[float] = field(default_factory=list)
+    evaluations: list[int] = field(default_factory=list)
+
+
+def fit_lines(
+    lines: Sequence[Line],
+    *,
+    looks: float | str = "auto",
+    z_knot: float | None = None,
+    r_knot: float | None = None,
+    levels: int = 2,
+    max_iter: int = 150,
+    uncertainty: bool = True,
+    progress: Progress | None = None,
+) -> list[SurfaceFit]:
+    """Fit one seabed surface, its reflectivity and each side's beam profile to several lines.
+
+    Every side of every line is fitted in one problem: Z and log R are splines on one grid in
+    a frame along the first line, so where lines overlap they share the unknowns (and a swath's
+    far range, seen by the next line at near range, fixes the bend the beam would absorb);
+    Φ is one profile per side shared by all lines; each line's first return anchors its nadir.
+
+    Parameters
+    ----------
+    lines : sequence of Line
+        The lines; one is enough.
+    looks : float or "auto"
+        Speckle looks of the images; "auto" estimates them per view from neighbouring pings.
+    z_knot, r_knot : float, optional
+        Knot spacing of Z and of log R, metres (default 4 range bins of the first line, at least
+        its ping spacing).
+    levels : int
+        Resolution levels (each halves pings and bins), coarse to fine.
+    max_iter : int
+        Most L-BFGS iterations per level where the fit is plain L-BFGS
+        (``GAUSS_NEWTON_STEPS = 0``).
+    uncertainty : bool
+        Estimate the standard deviation of Z per cell (:func:`elevation_std`).
+    progress : callable, optional
+        Called with a line of text after each level.
+
+    Returns
+    -------
+    list of SurfaceFit
+        One per line, in order.
+    """
+    prepared, frame, grids = _setup(lines, looks, z_knot, r_knot, levels)
+    params: np.ndarray | None = None
+    previous: Problem | None = None
+    energies, evaluations = [], []
+    for f, grid in grids:
+        problem = _level(prepared, frame, grid, f)
+        if params is None or previous is None:
+            params = _start(problem)
+        else:
+            params = _transfer(previous, params, problem)
+        previous = problem
+        if GAUSS_NEWTON_STEPS:
+            params, value, count = _gauss_newton(problem, params, GAUSS_NEWTON_STEPS)
+        else:
+            params, value, count = _minimise(problem, params, max_iter)
+        energies.append(value)
+        evaluations.append(count)
+        if progress is not None:
+            progress(f"level 1/{f}: E {value:.6g} after {count} evaluations")
+    assert params is not None and previous is not None
+    std = elevation_std(previous, params) if uncertainty else {}
+    return _results(previous, params, frame, std, energies, evaluations)
+
+
+def _setup(lines, looks, z_knot, r_knot, levels):
+    """Checked lines with their altitude, height and looks; the frame; the grid per level."""
+    from ..bottom import track_bottom
+    from ..ground import check_slant
+    from ..priors import estimate_looks
+
+    check_lines(lines)
+    prepared = []
+    for line in lines:
+        images = {n: check_slant(v, line.range_bin) for n, v in line.sides.items()}
+        if line.altitude is None:
+            alt = track_bottom(images, line.range_bin).altitude
+        else:
+            alt = np.broadcast_to(np.asarray(line.altitude, np.float64), (line.pings,)).copy()
+        height = np.zeros(line.pings) if line.height is None else np.asarray(line.height, float)
+        look = {}
+        for name, image in images.items():
+            est = estimate_looks(image, image > 0) if looks == "auto" else float(looks)
+            look[name] = float(min(max(est, 1.0), MAX_LOOKS))
+        prepared.append((line, images, alt, height, look))
+    frame = Frame.of(lines)
+    first = lines[0]
+    spacing = _ping_spacing(first)
+    zs = float(z_knot or max(Z_KNOT_BINS * first.range_bin, spacing))
+    rs = float(r_knot or max(R_KNOT_BINS * first.range_bin, spacing))
+    extent, angles = _extent(prepared, frame)
+    sides = tuple(s for s in ("port", "starboard") if any(s in p[1] for p in prepared))
+    grids = [
+        (f, Grid(extent, zs * f, rs * f, angles[:2], angles[2], sides))
+        for f in [2**k for k in range(levels - 1, -1, -1)]
+    ]
+    return prepared, frame, grids
+
+
+def problem_at(
+    lines: Sequence[Line],
+    *,
+    looks: float | str = "auto",
+    z_knot: float | None = None,
+    r_knot: float | None = None,
+    level: int = 1,
+) -> Problem:
+    """The problem :func:`fit_lines` solves at pooling ``level`` (1: full resolution)."""
+    prepared, frame, grids = _setup(lines, looks, z_knot, r_knot, int(math.log2(level)) + 1)
+    f, grid = grids[0]
+    return _level(prepared, frame, grid, f)
+
+
+def fit_surface(
+    sides: Mapping[str, np.ndarray],
+    range_bin: float,
+    *,
+    ping_spacing: float,
+    altitude: np.ndarray | None = None,
+    **options,
+) -> SurfaceFit:
+    """:func:`fit_lines` of one straight line, pings ``ping_spacing`` apart.
+
+    Parameters
+    ----------
+    sides : mapping of str to ndarray, each shape (pings, bins)
+        ``"port"`` and/or ``"starboard"`` images, linear intensity >= 0, bins from range 0.
+    range_bin : float
+        Slant-range bin, metres.
+    ping_spacing : float
+        Along-track distance between pings, metres.
+    altitude : ndarray, shape (pings,), optional
+        Altitude per ping (default: the first bottom return of the sides).
+    **options
+        As for :func:`fit_lines`.
+
+    Returns
+    -------
+    SurfaceFit
+    """
+    if not sides or any(n not in ("port", "starboard") for n in sides):
+        raise SonarRasterError("sides must be 'port' and/or 'starboard'")
+    if len({np.asarray(v).shape[0] for v in sides.values()}) != 1:
+        raise SonarRasterError("both sides must have the same number of pings")
+    line = Line.straight(sides, range_bin, ping_spacing, altitude)
+    return fit_lines([line], **options)[0]
+
+
+def _ping_spacing(line: Line) -> float:
+    steps = np.linalg.norm(np.diff(np.asarray(line.position, float), axis=0), axis=1)
+    return float(np.median(steps)) if steps.size else 1.0
+
+
+def _extent(prepared, frame: Frame) -> tuple[tuple[float, float, float, float], tuple]:
+    """The frame box every cell of every line falls in, and the Φ node angles."""
+    from ..ground import ground_axis
+
+    ys, xs, lows, highs = [], [], [], []
+    for line, images, alt, _, _ in prepared:
+        bins = next(iter(images.values())).shape[1]
+        reach = float(ground_axis(alt, line.range_bin, bins, line.range_bin)[-1])
+        reach += line.range_bin
+        for side in images:
+            y, x = cell_points(frame, line.position, line.heading, side, np.array([0.0, reach]))
+            ys.append(y.ravel())
+            xs.append(x.ravel())
+        lows.append(math.atan2(float(np.min(alt)), reach))
+        highs.append(math.atan2(float(np.max(alt)), 0.5 * line.range_bin))
+    y, x = np.concatenate(ys), np.concatenate(xs)
+    spacing = _ping_spacing(prepared[0][0])
+    y0, y1 = float(y.min()), float(max(y.max(), y.min() + spacing))
+    lo, hi = min(lows), max(highs)
+    nodes = max(4, int(math.degrees(hi - lo) * BEAM_NODES_PER_DEGREE) + 2)
+    return (y0, y1, float(x.min()), float(x.max())), (lo, hi, nodes)
+
+
+def _level(prepared, frame: Frame, grid: Grid, f: int) -> Problem:
+    """Every view at pooling ``f``, and the problem over them."""
+    from ..ground import ground_axis
+
+    views = []
+    for k, (line, images, alt, height, look) in enumerate(prepared):
+        rb = line.range_bin * f
+        h = pool(alt, f)
+        position = pool(np.asarray(line.position, float), f)
+        heading = pool_heading(np.asarray(line.heading, float), f)
+        dy = _ping_spacing(line) * f
+        for side, image in images.items():
+            pooled = pool_image(image, f) / rb  # per metre of slant range
+            bins = pooled.shape[1]
+            x = ground_axis(h, rb, bins, rb)
+            geom = Geometry(x, rb, dy, rb, bins, SUBSAMPLES)
+            y_pts, x_pts = cell_points(frame, position, heading, side, x)
+            ny, nx = frame.to_frame(position)
+            centres = (np.arange(bins) + 0.5) * rb
+            first = centres[None, :] >= 0.9 * h[:, None]
+            mask = first & (centres[None, :] < (bins - 3) * rb)
+            water = (~first) & (centres[None, :] > 0.3 * h[:, None])
+            lit = pooled[mask]
+            level = float(np.mean(lit)) if lit.size else 1.0
+            floor = float(np.mean(pooled[water])) if water.any() else 0.0
+            views.append(
+                View(
+                    line=k,
+                    side=side,
+                    image=pooled,
+                    mask=mask,
+                    floor=max(floor, 1e-3 * level),
+                    looks=min(look[side] * f * f, MAX_LOOKS),
+                    geom=geom,
+                    tau=float(np.nanmedian(h)) * rb / np.maximum(x, rb) ** 2,
+                    altitude=h,
+                    height=pool(height, f),
+                    bz=tensor_basis(y_pts.ravel(), x_pts.ravel(), grid.extent, grid.z_spacing),
+                    br=tensor_basis(y_pts.ravel(), x_pts.ravel(), grid.extent, grid.r_spacing),
+                    nadir=tensor_basis(ny, nx, grid.extent, grid.z_spacing),
+                    points=(y_pts, x_pts),
+                )
+            )
+    kz = tuple(len(k) for k in grid.knots("z"))
+    return Problem(views, grid, flat_start_knots(views, grid, kz))  # type: ignore[arg-type]
+
+
+def _start(problem: Problem) -> np.ndarray:
+    """Flat seabed at the first returns, R = 1, Φ fitted with Z and R held."""
+    p = np.zeros(problem.size)
+    p[: problem.nz] = problem.flat.ravel()
+    for side in problem.grid.sides:
+        data = [v.image[v.mask] for v in problem.views if v.side == side]
+        values = np.concatenate(data) if data else np.ones(1)
+        p[problem.phi_slice(side)] = math.log(max(float(np.mean(values)), 1e-30))
+    free = np.zeros(problem.size, bool)
+    free[problem.nz + problem.nr :] = True  # Φ only: R left to the joint fit, which shares
+    # the shading between R and Z by their priors (fitted first, R would keep it all)
+    p[:], _, _ = _minimise(problem, p, 60, free)
+    return p
+
+
+def _transfer(old: Problem, p: np.ndarray, new: Problem) -> np.ndarray:
+    """Parameters of ``new`` (finer knots) from those of ``old``.
+
+    Each new coefficient takes the old surface at its knot centre; the Φ nodes are the same.
+    """
+    out = np.zeros(new.size)
+    zc, rc, lphi = old.split(p)
+    out[: new.nz] = old.grid.sample(zc, new.grid.knots("z"), "z").ravel()
+    out[new.nz : new.nz + new.nr] = old.grid.sample(rc, new.grid.knots("r"), "r").ravel()
+    new.flat = old.grid.sample(old.flat, new.grid.knots("z"), "z")
+    for side in new.grid.sides:
+        out[new.phi_slice(side)] = lphi[side]
+    return out
+
+
+def _minimise(
+    problem: Problem, p: np.ndarray, max_iter: int, free: np.ndarray | None = None
+) -> tuple[np.ndarray, float, int]:
+    keep = np.ones(p.size, bool) if free is None else free
+    scale = problem.scales()[keep]
+    norm = problem.norm
+    base = p.copy()
+
+    def fun(q: np.ndarray) -> tuple[float, np.ndarray]:
+        full = base.copy()
+        full[keep] = q * scale
+        value, grad = problem(full)
+        if not np.isfinite(value):
+            return math.inf, np.zeros_like(q)
+        return value / norm, grad[keep] * scale / norm
+
+    x0 = base[keep] / scale
+    # L-BFGS stops early where its line search fails on a kink of the model (a shadow's edge,
+    # a facet turning away); it restarts from there with a fresh memory while that still
+    # lowers E by a useful amount and iterations are left
+    left, count, best = max_iter, 0, math.inf
+    while left > 0:
+        res = optimize.minimize(
+            fun,
+            x0,
+            jac=True,
+            method="L-BFGS-B",
+            options={"maxiter": left, "maxcor": 20, "ftol": 1e-12, "gtol": 1e-12},
+        )
+        count += int(res.nfev)
+        left -= max(int(res.nit), 1)
+        gain = best - float(res.fun)
+        x0, best = res.x, min(best, float(res.fun))
+        if res.status != 2 or gain < RESTART_GAIN:  # 2: line search failed
+            break
+    out = base.copy()
+    out[keep] = x0 * scale
+    return out, best * norm, count
+
+
+def _results(
+    problem: Problem,
+    p: np.ndarray,
+    frame: Frame,
+    std: Mapping[tuple[int, str], np.ndarray],
+    energies: list[float],
+    evaluations: list[int],
+) -> list[SurfaceFit]:
+    _, _, lphi = problem.split(p)
+    theta = np.linspace(*problem.grid.angles, problem.grid.nodes)
+    profile = {s: (theta, np.exp(lphi[s])) for s in problem.grid.sides}
+    fits: dict[int, SurfaceFit] = {}
+    for view in problem.views:
+        z, r, beam = problem.fields(p, view)
+        fit = fits.setdefault(
+            view.line,
+            SurfaceFit(
+                view.geom.x,
+                {},
+                {},
+                {},
+                {},
+                {},
+                {},
+                altitude=view.altitude,
+                energies=energies,
+                evaluations=evaluations,
+            ),
+        )
+        fit.elevation[view.side], fit.reflectivity[view.side] = z, r
+        fit.beam[view.side] = beam.phi
+        fit.profile[view.side] = profile[view.side]
+        fit.looks[view.side] = view.looks
+        fit.position[view.side] = frame.to_world(*view.points)
+        if (view.line, view.side) in std:
+            fit.elevation_std[view.side] = std[(view.line, view.side)]
+    return [fits[k] for k in sorted(fits)]
+
+
+def elevation_std(
+    problem: Problem, p: np.ndarray, samples: int = 32, seed: int = 0
+) -> dict[tuple[int, str], np.ndarray]:
+    """Standard deviation of Z per cell of each view (line, side), Laplace approximation.
+
+    The posterior of the Z knots, R and Φ held at the fit, is approximated by a Gaussian with
+    the Gauss-Newton (Fisher) precision ``H = Jᵀ W J + P``: ``J`` the exact Jacobian of the
+    model image wrt the knots (shadows held), ``W = L / μ²`` the Gamma likelihood's Fisher
+    weight per bin and ``P`` the Hessian of the quadratic priors on Z. Samples
+    ``H⁻¹ (Jᵀ ε₁ + Σ Dᵀ ε₂)`` with ``ε`` standard normal have exactly that covariance; each
+    costs one solve with the sparse LU factors of ``H``. A cell's standard deviation is that of
+    its interpolated Z over the samples.
+    """
+    from scipy.sparse.linalg import splu
+
+    rng = np.random.default_rng(seed)
+    h, jacobians = _fisher_z(problem, p)
+    jac = sparse.vstack(jacobians, format="csr")
+    roots = _prior_roots(problem)
+    lu = splu(h, **SYMMETRIC_LU)
+    draws = []
+    for _ in range(samples):
+        rhs = jac.T @ rng.standard_normal(jac.shape[0])
+        for root in roots:
+            rhs = rhs + root.T @ rng.standard_normal(root.shape[0])
+        draws.append(lu.solve(rhs))
+    knots = np.stack(draws, axis=1)  # (nz, samples)
+    return {
+        (v.line, v.side): np.std(np.asarray(v.bz @ knots), axis=1, ddof=1).reshape(v.shape)
+        for v in problem.views
+    }
+
+
+def _prior_roots(problem: Problem) -> list[sparse.csr_matrix]:
+    """Square roots ``D`` (``P = Σ DᵀD``) of the Hessians of the quadratic priors on Z knots."""
+    ky, kx = problem.kz
+    step = problem.grid.z_spacing
+    roots = []
+    for axis, w in ((0, problem.w_z_along), (1, problem.w_z)):
+        n = (ky, kx)[axis]
+        if n < 3:
+            continue
+        d2 = sparse.diags([1.0, -2.0, 1.0], [0, 1, 2], shape=(n - 2, n)) / step**2
+        eye = sparse.identity((kx, ky)[axis])
+        d = sparse.kron(d2, eye) if axis == 0 else sparse.kron(eye, d2)
+        roots.append((math.sqrt(2.0 * w) * d).tocsr())
+    if prob.RELIEF_STD is not None:
+        w = step**2 / (2.0 * prob.RELIEF_STD**2)
+        roots.append(math.sqrt(2.0 * w) * sparse.identity(problem.nz, format="csr"))
+    for i in problem.anchored.values():
+        view = problem.views[i]
+        w = 1.0 / (2.0 * problem.anchor_std(view) ** 2)
+        known = sparse.diags(np.isfinite(view.altitude).astype(np.float64))
+        roots.append(math.sqrt(2.0 * w) * (known @ view.nadir).tocsr())
+    return roots
+
+
+def _fisher_z(problem: Problem, p: np.ndarray) -> tuple[sparse.csc_matrix, list]:
+    """Gauss-Newton (Fisher) matrix of the objective wrt the Z knots, and each view's Jacobian.
+
+    R, the Φ nodes and the shadows are held.
+
+    ``Σ_views (J B)ᵀ (J B)`` with ``J`` the model's Jacobian wrt per-cell Z (the beam's change
+    of depression angle included) weighted by ``sqrt(L / μ²)`` and ``B`` the view's Z basis,
+    plus the Hessians of the quadratic priors on Z; the line-profile prior is applied
+    separately (:func:`.problem.line_profile`).
+    """
+    jacobians = []
+    h = None
+    for view in problem.views:
+        z, r, beam = problem.fields(p, view)
+        shade = soft_shadow(z, view.geom.x, view.tau)[0]
+        mu = forward(r * shade, beam.phi, z, view.geom) + view.floor
+        weight = np.where(view.mask, view.looks / (mu * mu), 0.0)
+        per_cell = jacobian_z(weight, r * shade, beam.phi, z, view.geom) + beam_jacobian(
+            weight, r * shade * beam.dz, z, view.geom
+        )
+        jac = (per_cell @ view.bz).tocsr()
+        jacobians.append(jac)
+        block = (jac.T @ jac).tocsc()
+        h = block if h is None else h + block
+    assert h is not None
+    for root in _prior_roots(problem):
+        h = h + (root.T @ root).tocsc()
+    return h.tocsc(), jacobians
+
+
+def beam_jacobian(
+    weight: np.ndarray, values: np.ndarray, z: np.ndarray, geom: Geometry
+) -> sparse.csr_matrix:
+    """``sqrt(w) ∂μ/∂Φ diag(values)``: the model's Jacobian wrt per-cell Φ scaled per cell.
+
+    With ``values = R ∂Φ/∂Z`` it is the Jacobian wrt Z through the beam (Φ at each cell's own
+    depression angle), a (pings·bins) × (pings·cells) matrix: each cell's return
+    ``Φ R q dx / range_bin`` is shared by its sub-points and split between the two nearest bins
+    as in :func:`..model.forward`.
+    """
+    pings, cells = z.shape
+    width, n = geom.bins, geom.subsamples
+    x = geom.x[None, :]
+    zx = slope(z, 1, geom.dx)
+    q = np.maximum(x * zx - z, 0.0) / np.sqrt(x * x + z * z)
+    amp = values * q * geom.dx / geom.range_bin / n
+    col = np.arange(pings * cells).reshape(pings, cells)
+    base = np.arange(pings)[:, None] * width
+    rows, cols, vals = [], [], []
+    for s in range(n):
+        offset = ((s + 0.5) / n - 0.5) * geom.dx
+        zs = z + offset * zx
+        u = np.sqrt((x + offset) ** 2 + zs * zs) / geom.range_bin - 0.5
+        k0 = np.floor(u)
+        t = u - k0
+        for k, share in ((k0.astype(np.int64), 1.0 - t), (k0.astype(np.int64) + 1, t)):
+            inside = (k >= 0) & (k < width)
+            rows.append((base + k)[inside])
+            cols.append(col[inside])
+            vals.append((amp * share)[inside])
+    matrix = sparse.csr_matrix(
+        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+        shape=(pings * width, pings * cells),
+    )
+    return (sparse.diags(np.sqrt(weight).ravel()) @ matrix).tocsr()
+
+
+def _gn_matvec(problem: Problem, lhs: sparse.csc_matrix, v: np.ndarray) -> np.ndarray:
+    out = np.asarray(lhs @ v)
+    if problem.w_line > 0:
+        out = out + line_profile(problem, v)[1]
+    return out
+
+
+def _gauss_newton(problem: Problem, p: np.ndarray, steps: int) -> tuple:
+    """Alternate Gauss-Newton steps on the Z knots with L-BFGS on R and Φ.
+
+    Each Z step solves ``(H + H_line + μ D) δ = −g`` by conjugate gradients preconditioned with
+    the sparse LU factors of ``H + μ D`` (D its diagonal; μ shrinks after a good step and grows
+    after a bad one), then backtracks on the full objective, which never rises.
+    """
+    from scipy.sparse.linalg import LinearOperator, cg, splu
+
+    nz = problem.nz
+    free = np.zeros(problem.size, bool)
+    free[nz:] = True
+    value, grad = problem(p)
+    count, damping = 1, 1e-3
+    for _ in range(int(steps)):
+        h, _ = _fisher_z(problem, p)
+        diag = h.diagonal()
+        lhs = (h + sparse.diags(damping * diag + 1e-12 * diag.mean())).tocsc()
+        lu = splu(lhs, **SYMMETRIC_LU)
+        op = LinearOperator((nz, nz), matvec=partial(_gn_matvec, problem, lhs))
+        pre = LinearOperator((nz, nz), matvec=lu.solve)
+        step, _ = cg(op, -grad[:nz], M=pre, maxiter=30)
+        accepted = False
+        for t in (1.0, 0.5, 0.25, 0.125):
+            q = p.copy()
+            q[:nz] += t * step
+            trial, g_trial = problem(q)
+            count += 1
+            if trial < value:
+                p, value, grad, accepted = q, trial, g_trial, True
+                break
+        damping = damping * 0.3 if accepted else damping * 10.0
+        p, value, n = _minimise(problem, p, INNER_ITERATIONS, free)
+        count += n
+        grad = problem(p)[1]
+    return p, value, count
+
