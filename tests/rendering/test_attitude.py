@@ -118,14 +118,6 @@ def test_heading_far_off_the_course_is_refused():
         traj.segments(0.01)
 
 
-def test_coherent_model_refuses_crab():
-    from sonar_raster.rendering.coherent.model import render_coherent
-
-    scene = build_scene([rect_seabed(-10.0, 10.0, -10.0, 10.0)])
-    with pytest.raises(SonarRasterError, match="crab or pitch"):
-        render_coherent(scene, Sonar(max_range=5.0, range_bin=0.1), _track(3, 10.0))
-
-
 def test_scene_file_sets_crab_pitch_and_roll(tmp_path):
     from sonar_raster.scenes.description import load_scene_file
 

@@ -71,21 +71,29 @@ class KaiserBessel:
         interpolated in a table of ``_TABLE`` steps per sample (relative error < 1e-7).
         """
         base = np.floor(x)
-        first = base.astype(np.int64) - self.taps // 2 + 1
-        pos = (x - base) * _TABLE  # fractional part in table steps, [0, _TABLE)
-        cell = np.minimum(pos.astype(np.int64), _TABLE - 1)
-        alpha = pos - cell
-        table = self._table()
-        lo = table[:, cell]
-        return first, lo + (table[:, cell + 1] - lo) * alpha
+        pos = x - base
+        pos *= _TABLE  # fractional part in table steps, [0, _TABLE)
+        cell = pos.astype(np.int64)
+        np.minimum(cell, _TABLE - 1, out=cell)
+        pos -= cell
+        rows = np.take(self._table(), cell, axis=1)
+        w = rows[self.taps :] * pos
+        w += rows[: self.taps]
+        first = base.astype(np.int64)
+        first -= self.taps // 2 - 1
+        return first, w
 
     def _table(self) -> np.ndarray:
-        """``φ(q − W/2 + 1 − f)`` for taps q and fractions ``f = i / _TABLE``, shape (W, T + 1)."""
+        """``φ_q(f_i)`` (rows q < W) and ``φ_q(f_{i+1}) − φ_q(f_i)`` (rows W + q), shape (2W, T).
+
+        ``φ_q(f) = φ(q − W/2 + 1 − f)`` is tap q's weight at fraction ``f_i = i / _TABLE``.
+        """
         key = (self.taps, self.beta)
         if key not in _TABLES:
             f = np.arange(_TABLE + 1) / _TABLE
-            q = np.arange(self.taps, dtype=np.float64)[:, None]
-            _TABLES[key] = self.kernel(q - self.taps // 2 + 1.0 - f)
+            q = np.arange(self.taps, dtype=np.float64)
+            phi = self.kernel(q[:, None] - self.taps // 2 + 1.0 - f)
+            _TABLES[key] = np.ascontiguousarray(np.concatenate([phi[:, :-1], np.diff(phi)]))
         return _TABLES[key]
 
     def kernel(self, z: np.ndarray) -> np.ndarray:
@@ -213,36 +221,48 @@ class EchoGrid:
     def accumulator(self, rows: int, method: str) -> np.ndarray:
         """Zeroed accumulator for ``rows`` rows.
 
-        "fast": float64 (2, rows, N), real and imaginary deposits; "direct": complex (rows, f),
-        the in-band spectrum.
+        "fast": float64 (2, N, rows), real and imaginary deposits, sample-major (a chunk of
+        scatterers spans a few metres of range, so its deposit touches a short stretch);
+        "direct": complex (rows, f), the in-band spectrum.
         """
         if method == "fast":
-            return np.zeros((2, rows, self.n))
+            return np.zeros((2, self.n, rows))
         return np.zeros((rows, len(self.band)), dtype=np.complex128)
 
     def add(self, acc: np.ndarray, row: np.ndarray, x: np.ndarray, c: np.ndarray) -> None:
         """Add amplitudes ``c`` (complex, shape (p,)) at grid positions ``x`` of rows ``row``."""
+        self.add_parts(acc, row, x, np.ascontiguousarray(c.real), np.ascontiguousarray(c.imag))
+
+    def add_parts(
+        self, acc: np.ndarray, row: np.ndarray, x: np.ndarray, re: np.ndarray, im: np.ndarray
+    ) -> None:
+        """:meth:`add` with the amplitudes' real and imaginary parts (shape (p,) each)."""
         if len(row) == 0:
             return
         if acc.dtype == np.complex128:
-            self._add_direct(acc, row, x, c)
+            self._add_direct(acc, row, x, re + 1j * im)
         else:
-            self._deposit(acc, row, x, c)
+            self._deposit(acc, row, x, re, im)
 
-    def _deposit(self, acc: np.ndarray, row: np.ndarray, x: np.ndarray, c: np.ndarray) -> None:
+    def _deposit(
+        self, acc: np.ndarray, row: np.ndarray, x: np.ndarray, re: np.ndarray, im: np.ndarray
+    ) -> None:
         first, w = self.kernel.weights(x)
         if first.min() < 0 or first.max() + self.kernel.taps > self.n:
             raise ValueError("a scatterer lies outside the echo grid")
-        # One bincount per tap on the first taps' indices, added at the tap's shift: no
-        # (taps, p) index array (1.5x faster than one bincount of every tap).
-        base = row * self.n + first
-        lo = int(base.min())
-        idx = base - lo
+        # One bincount per tap on the first taps' indices (sample-major), added at the tap's
+        # shift: no (taps, p) index array (1.5x faster than one bincount of every tap).
+        rows = acc.shape[2]
+        idx = first * rows
+        idx += row
+        lo = int(idx.min())
+        idx -= lo
         size = int(idx.max()) + 1
-        re, im = acc[0].reshape(-1), acc[1].reshape(-1)
+        acc_re, acc_im = acc[0].reshape(-1), acc[1].reshape(-1)
         for q in range(self.kernel.taps):
-            re[lo + q : lo + q + size] += np.bincount(idx, weights=w[q] * c.real, minlength=size)
-            im[lo + q : lo + q + size] += np.bincount(idx, weights=w[q] * c.imag, minlength=size)
+            at = slice(lo + q * rows, lo + q * rows + size)
+            acc_re[at] += np.bincount(idx, weights=w[q] * re, minlength=size)
+            acc_im[at] += np.bincount(idx, weights=w[q] * im, minlength=size)
 
     def _add_direct(self, acc: np.ndarray, row: np.ndarray, x: np.ndarray, c: np.ndarray) -> None:
         order = np.argsort(row, kind="stable")
@@ -262,12 +282,12 @@ class EchoGrid:
         """Compressed complex baseband signal at the image samples, shape (rows, n_bins * M)."""
         from scipy import fft
 
-        rows = acc.shape[1] if acc.dtype != np.complex128 else acc.shape[0]
+        rows = acc.shape[2] if acc.dtype != np.complex128 else acc.shape[0]
         spectrum = np.zeros((rows, self.n), dtype=np.complex128)
         if acc.dtype == np.complex128:
             spectrum[:, self.band] = acc * self.compressed
         else:
-            u = fft.fft(acc[0] + 1j * acc[1], axis=1)
+            u = fft.fft((acc[0] + 1j * acc[1]).T, axis=1)
             spectrum[:, self.band] = u[:, self.band] * (
                 self.compressed / self.kernel.transform(self.xi)
             )

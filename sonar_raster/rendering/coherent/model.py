@@ -19,14 +19,19 @@ range bin's samples (an integral per bin, as the raster image is), and spherical
 kept (intensity ∝ 1/r⁴; no TVG): :func:`to_raster_units` removes it for comparisons.
 
 Geometry matches :mod:`..reference`: the trajectory is split into the same straight
-segments, a scatterer's side is the sign of its across-track coordinate, its visibility is one
-embree ray cast from the point of the track abeam of it to its facet centroid (the first hit
-must be its own face or not nearer), and image bins are ``[k, k+1) · range_bin`` of slant range.
-The echo itself uses the exact distance from each ping's position, so phases are right.
+segments, each with its frame (the shear map of a crabbed or pitched segment: travel of the fan
+a point lies in, and its place in that fan); a scatterer's side is the sign of its across-track
+coordinate, its visibility is tested at its facet centroid from the track point whose fan holds
+it (the GL raster's first-hit range maps, :mod:`.visibility`, or one embree ray), and image bins
+are ``[k, k+1) · range_bin`` of slant range. The echo uses the exact distance from each ping's
+position (in the fan's orthonormal frame), so phases are right, and ``Φ_h`` the direction cosine
+on the fan's normal (the vehicle's fore axis).
 
 Scatterers are generated per block of pings, only inside the block's reach (the horizontal
-beam's along-track footprint at the maximum range), in chunks of ``chunk``; memory is bounded by
-the chunk size and the block's fine delay grid (see ``peak_memory_bytes`` in the metadata).
+beam's along-track footprint at the maximum range), in chunks of ``chunk``; those inside no
+ping's beam are dropped before the visibility test; the terms of ``_TERM_BATCH`` scatterers at a
+time are computed (:func:`_terms`) and deposited. Memory is bounded by the chunk size and the
+block's fine delay grid (see ``peak_memory_bytes`` in the metadata).
 """
 
 from __future__ import annotations
@@ -48,7 +53,14 @@ from ...sonar import SIDES, Sonar
 from ...trajectory import Trajectory, heading_axes
 from .echo import KERNEL_TAPS, EchoGrid
 from .pulse import Pulse
-from .scatter import JITTER_CLIP, Scatterers, ScatterSurface, generate, scatter_surface
+from .scatter import (
+    JITTER_CLIP,
+    Scatterers,
+    ScatterSurface,
+    cos_sin,
+    generate,
+    scatter_surface,
+)
 
 __all__ = [
     "Echo",
@@ -72,17 +84,23 @@ SEABED_SPACING = 4.0
 _SEABED_BINS = 0.5
 #: Travel between the rows of the visibility range maps, in range bins.
 _MAP_ROW_BINS = 1.0
-#: Measured cost on the 2-core CI machine (tools/bench_render.py --coherent): seconds per
-#: scatterer generated in reach, and per scatterer-ping term deposited.
-_COST_SCATTERER = 0.3e-6
-_COST_PAIR = 0.2e-6
+#: Measured cost on the 2-core CI machine (tools/bench_coherent.py, bare barrel): seconds per
+#: scatterer generated in reach, and per estimated scatterer-ping term (the estimate counts
+#: about twice the terms made; 11.7 s estimated for 12.4 s measured at load 5.8).
+_COST_SCATTERER = 0.15e-6
+_COST_PAIR = 0.05e-6
 #: Scatterers beyond ``max_range`` + this many range bins are left out (their compressed main
 #: lobes still reach the last bins).
 RANGE_MARGIN_BINS = 3.0
+#: Scatterers whose terms are computed and deposited at once (their arrays stay in cache:
+#: 1.3-1.4x faster than 65536 at a time).
+_TERM_BATCH = 8192
 #: Fine-grid bytes one ping block may hold (sets the pings per block).
 _BLOCK_BYTES = 96 << 20
 #: Argument of ``np.sinc`` where ``sinc⁴ = 1/2`` (half-power point of a two-way sinc pattern).
 _SINC4_HALF = 0.31911
+#: Direction of travel in fan components without crab or pitch (see _travel).
+_LEVEL = np.array([1.0, 0.0, 0.0])
 #: Bytes per scatterer and per (scatterer, ping) pair in flight (for the memory estimate).
 _SCATTERER_BYTES = 400
 _PAIR_BYTES = (4 * KERNEL_TAPS + 24) * 8
@@ -298,17 +316,20 @@ def render_coherent(
         float32 (pings, ``sonar.n_bins``) per side: bin-averaged matched-filter envelope power,
         with spreading (∝ r⁻⁴), in Eq. 10 units (see :func:`to_raster_units`). ``metadata``:
         renderer "coherent", settings, ``n_scatterers`` (inside reach, summed over ping blocks),
-        ``n_rays``, ``n_visible``, ``n_pairs`` (scatterer-ping terms), ``facet_area_m2``,
-        ``peak_memory_bytes`` (estimate), ``time_s``.
+        ``n_rays``, ``n_visible`` (visible among those inside some ping's beam), ``n_pairs``
+        (scatterer-ping terms), ``facet_area_m2``, ``ping_width_m`` (trajectory spacing times
+        the fan's mean advance per metre of travel), ``peak_memory_bytes`` (estimate),
+        ``time_s``.
 
     Raises
     ------
     TypeError
         If an argument has the wrong type.
     SonarRasterError
-        On an invalid setting, when no ray caster is available (``visibility="rays"``), or
-        when the job is estimated over an hour or over the machine's memory (unless
-        ``force``).
+        On an invalid setting, when no ray caster is available (``visibility="rays"``), when
+        the vehicle crabs or pitches more than the horizontal beam allows (its reach along
+        travel would be unbounded), or when the job is estimated over an hour or over the
+        machine's memory (unless ``force``).
     """
     from ..fan import check_inputs, segment_frame
 
@@ -355,19 +376,22 @@ def render_coherent(
     blocks = []
     for segment in trajectory.segments(sonar.range_bin / 4.0):
         frame = segment_frame(segment, trajectory, local, spacing)
-        if not np.allclose(frame.axes, frame.fan_axes, atol=1e-9):
-            raise SonarRasterError(
-                "the coherent model does not model crab or pitch yet (heading off the course, "
-                "or pitch not 0); use the raster model for this track"
-            )
+        travel = _travel(frame)
         sl = slice(segment.first, segment.first + segment.count)
         pings = (trajectory.positions[sl] - local - frame.origin) @ frame.axes.T
         for j0 in range(0, segment.count, block):
             j1 = min(segment.count, j0 + block)
-            bounds, off = _block_bounds(work.model, pings[j0:j1], sides, jitter)
+            bounds, off = _block_bounds(work.model, pings[j0:j1], sides, jitter, travel)
             blocks.append(
                 _Block(
-                    segment, frame, segment.first + j0, pings[j0:j1], frame.roll[j0:j1], bounds, off
+                    segment,
+                    frame,
+                    segment.first + j0,
+                    pings[j0:j1],
+                    frame.roll[j0:j1],
+                    bounds,
+                    off,
+                    travel,
                 )
             )
     estimate = _estimate(work, blocks, trajectory, block)
@@ -414,7 +438,9 @@ def render_coherent(
         "chunk": int(chunk),
         "wavelength_m": sonar.wavelength,
         "samples_per_bin": grid.samples_per_bin,
-        "ping_width_m": trajectory.typical_spacing,
+        # the fan advances a_f = along·fore per metre of travel (crab, pitch): the raster's
+        # ping sweeps a slab w a_f thick, the coherent beam one ∫Φ_h thick (to_raster_units)
+        "ping_width_m": trajectory.typical_spacing * _mean_advance(blocks),
         # The a² that to_raster_units divides by: spacing² for random-phase scatterers.
         "facet_area_m2": work.model.area_ref or stats.facet_area(),
         "n_scatterers": stats.scatterers,
@@ -472,6 +498,7 @@ class _Block:
     roll: np.ndarray
     bounds: np.ndarray
     off: float
+    travel: np.ndarray  # (3,) direction of travel in fan components (see _travel)
     work: float = 0.0  # estimated seconds (progress bar units)
 
 
@@ -507,21 +534,30 @@ def _render_block(
     grid, sides, frame = work.grid, work.sides, item.frame
     acc = grid.accumulator(len(item.pings) * len(sides), work.method)
     test = _visibility_test(work, item, scene, sonar, local, casters, stats)
-    slack = JITTER_CLIP * math.sqrt(3.0) * work.jitter + item.off
-    for sc in generate(work.surface, frame.axes, frame.origin, item.bounds, work.chunk):
-        sc = _cull(sc, work.model, sides, slack, stats)
+    factor = _face_factor(work.surface.facet_area, work.surface.reflectivity, work.model)
+    slack = (JITTER_CLIP * math.sqrt(3.0) * work.jitter + item.off) / item.travel[0]
+    slack += _reach(work.model.r_limit + slack, work.model, item.travel) * _skew(item.travel)
+    for sc in generate(
+        work.surface, frame.axes, frame.origin, item.bounds, work.chunk, frame.fan_axes
+    ):
+        sc = _cull(sc, work.model, sides, slack, stats, item)
         if len(sc.face) == 0:
             continue
         vis = test(sc)
         stats.rays += len(vis) if work.visibility == "rays" else 0
         stats.visible += int(vis.sum())
         sc = sc.take(np.flatnonzero(vis))
-        stats.area += float(sc.facet_area.sum())
-        stats.area2 += float((sc.facet_area**2).sum())
+        area = sc.facet_area
+        stats.area += float(area.sum())
+        stats.area2 += float(np.einsum("i,i", area, area))  # not BLAS: its threads spin
         sc = sc.jittered(frame.axes, work.jitter, work.seed)
-        row, x, c = _pairs(sc, item.pings, item.roll, sides, work.model, grid, item.off)
-        stats.pairs += len(row)
-        grid.add(acc, row, x, c)
+        for lo in range(0, len(sc.face), _TERM_BATCH):  # cache-sized batches
+            part = sc.take(slice(lo, lo + _TERM_BATCH)) if len(sc.face) > _TERM_BATCH else sc
+            terms = _terms(
+                part, item.pings, item.roll, sides, work.model, item.off, item.travel, factor
+            )
+            stats.pairs += terms.count
+            grid.add_parts(acc, terms.row, grid.position(terms.r), terms.re, terms.im)
     return grid.intensity(acc).reshape(len(item.pings), len(sides), grid.n_bins)
 
 
@@ -655,18 +691,65 @@ def _model(sonar: Sonar, beam_h: HorizontalBeam | None, law: str) -> _Model:
     return _Model(sonar, beam_h, law, sonar.wavelength, r_limit)
 
 
+def _travel(frame: Any) -> np.ndarray:
+    """Direction of travel in the fan's orthonormal components (fore, starboard, up), (3,).
+
+    ``(1, 0, 0)`` without crab or pitch. Frame coordinates ``(t, x, v)`` (the segment's shear
+    map: travel of the fan a point lies in, and its place in that fan) differ from the fan's
+    orthonormal components by ``t`` times this vector, so the offset from a ping at travel
+    ``t_p`` to a scatterer is ``(t − t_p) a + (0, x − y_p, v − z_p)`` in fan components.
+    """
+    a = frame.fan_axes @ frame.along
+    if abs(a[1]) < 1e-12 and abs(a[2]) < 1e-12:
+        return np.array([1.0, 0.0, 0.0])
+    return a
+
+
+def _mean_advance(blocks: list[_Block]) -> float:
+    """Ping-weighted mean of ``a_f`` (the fan's advance per metre of travel) over the blocks."""
+    pings = np.array([len(b.pings) for b in blocks], dtype=np.float64)
+    advance = np.array([b.travel[0] for b in blocks])
+    return float(pings @ advance / pings.sum()) if len(blocks) else 1.0
+
+
+def _skew(travel: np.ndarray) -> float:
+    """In-fan part of the direction of travel, ``sqrt(a_s² + a_u²)`` (0 without crab/pitch)."""
+    return math.hypot(float(travel[1]), float(travel[2]))
+
+
+def _reach(rho: np.ndarray | float, model: _Model, travel: np.ndarray) -> np.ndarray | float:
+    """Largest travel between a ping and a scatterer ``rho`` from its line inside the beam.
+
+    ``|u| <= u_c`` with ``u = Δt a_f / r`` and ``r >= |Δt| a_f``, the in-fan distance at most
+    ``rho + |Δt| skew``: ``|Δt| <= u_c rho / (a_f sqrt(1 − u_c²) − u_c skew)``.
+    """
+    u = model.u_cut
+    den = float(travel[0]) * math.sqrt(1.0 - u * u) - u * _skew(travel)
+    if den <= 0:
+        raise SonarRasterError(
+            "the vehicle crabs or pitches more than the horizontal beam's reach allows; "
+            "use a narrower horizontal beam or the raster model"
+        )
+    return rho * u / den
+
+
 def _block_bounds(
-    model: _Model, pings: np.ndarray, sides: tuple[str, ...], jitter: float
+    model: _Model,
+    pings: np.ndarray,
+    sides: tuple[str, ...],
+    jitter: float,
+    travel: np.ndarray,
 ) -> tuple[np.ndarray, float]:
     """Box (frame coordinates) of facet centroids that can reach a block of pings.
 
     Returns the box and the pings' largest distance from the segment's line (metres).
     """
     off = float(np.max(np.hypot(pings[:, 1], pings[:, 2]), initial=0.0))
-    margin = JITTER_CLIP * jitter * math.sqrt(3.0) + 1e-6
+    # the shear map stretches world lengths by up to 1 / a_f
+    margin = (JITTER_CLIP * jitter * math.sqrt(3.0) + 1e-6) / float(travel[0])
     r = model.r_limit + off + margin
-    u = model.u_cut
-    reach = r * u / math.sqrt(1.0 - u * u) + off + margin
+    reach = float(_reach(r, model, travel)) + off + margin
+    r += reach * _skew(travel)  # a ping off along travel sees the fan's points shifted
     t_lo, t_hi = float(pings[:, 0].min()), float(pings[:, 0].max())
     x_lo = -r if "port" in sides else -margin
     x_hi = r if "starboard" in sides else margin
@@ -674,46 +757,174 @@ def _block_bounds(
 
 
 def _cull(
-    sc: Scatterers, model: _Model, sides: tuple[str, ...], slack: float, stats: _Stats
+    sc: Scatterers,
+    model: _Model,
+    sides: tuple[str, ...],
+    slack: float,
+    stats: _Stats,
+    item: _Block | None = None,
 ) -> Scatterers:
-    """Keep scatterers on an imaged side, within range reach, facing the track."""
-    _, x, v = sc.nominal.T
+    """Keep scatterers on an imaged side, within range reach, facing the track.
+
+    With ``item``, also only those inside some ping's horizontal beam (their facet centroid
+    within the beam's reach of a ping of the block, with the jitter's and the pings' slack):
+    the rest would add no term. ``stats.scatterers`` counts the scatterers in range reach.
+    """
+    t, x, v = sc.nominal.T
     side_ok = np.where(x > 0, "starboard" in sides, "port" in sides) & (x != 0)
-    near = np.hypot(x, v) < model.r_limit + slack
+    rho = np.hypot(x, v)
+    near = rho < model.r_limit + slack
     keep = side_ok & near
     stats.scatterers += int(np.count_nonzero(keep))
-    facing = -(x * sc.normal[:, 1] + v * sc.normal[:, 2]) > 0
-    return sc.take(np.flatnonzero(keep & facing))
+    normal = sc.faces.normal
+    keep &= x * normal[sc.face, 1] + v * normal[sc.face, 2] < 0
+    if item is not None:
+        tp = np.sort(item.pings[:, 0])
+        reach = _reach(rho + slack, model, item.travel) + slack + 1e-9
+        lo = np.searchsorted(tp, t - reach, side="left")
+        keep &= np.searchsorted(tp, t + reach, side="right") > lo
+    return sc.take(np.flatnonzero(keep))
 
 
-def _pairs(
+@dataclass(frozen=True)
+class _Terms:
+    """Scatterer-ping terms of one chunk: grid row, distance and complex amplitude.
+
+    Terms outside the beams (or facing away) have amplitude 0 and ``count`` leaves them out.
+    """
+
+    row: np.ndarray  # (p,) int64: ping * sides + side slot
+    r: np.ndarray  # (p,) metres
+    re: np.ndarray  # (p,)
+    im: np.ndarray  # (p,)
+    count: int
+
+
+def _terms(
     sc: Scatterers,
     pings: np.ndarray,
     roll: np.ndarray,
     sides: tuple[str, ...],
     model: _Model,
-    grid: EchoGrid,
     off: float,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(row, grid position, complex amplitude) of every scatterer-ping term of a block."""
+    travel: np.ndarray | None = None,
+    face_factor: np.ndarray | None = None,
+) -> _Terms:
+    """Every scatterer-ping term of a chunk and a block of pings (Eq. 10, vectorised).
+
+    A scatterer meets the pings within the horizontal beam's reach of it (one ``searchsorted``
+    per chunk); the amplitude is :func:`_amplitudes`'s, with the per-scatterer factors
+    (area, R, the across-track distance when the block's pings share one line) computed once
+    per scatterer and the phase reduced to a fraction of a cycle before its cosine and sine.
+    ``travel`` (:func:`_travel`, default level) maps frame offsets to the fan's orthonormal
+    components; positions and pings are in frame coordinates, normals in fan ones.
+    ``face_factor`` (:func:`_face_factor`) is computed when not given.
+    """
+    travel = _LEVEL if travel is None else travel
+    k, j = _pair_index(sc.position, pings, model, off, travel)
+    t, x, v = (np.ascontiguousarray(c) for c in sc.position.T)
+    normal = sc.faces.normal[sc.face]
+    nt, nx, nv = (np.ascontiguousarray(c) for c in normal.T)
+    dt = t[k]
+    dt -= pings[j, 0]  # travel between the ping and the fan the scatterer lies in
+    level = travel[1] == 0 and travel[2] == 0
+    if level and np.ptp(pings[:, 1]) == 0 and np.ptp(pings[:, 2]) == 0:
+        # no crab or pitch, pings on one line: the across-track part is per scatterer
+        dx, dv = x - pings[0, 1], v - pings[0, 2]
+        r = (dx * dx + dv * dv)[k]
+        nd = (nx * dx + nv * dv)[k]
+        depression = np.arctan2(-dv, np.abs(dx))[k] if not model.sonar.beam.is_uniform else None
+        fore = dt
+    else:
+        dx = x[k] - pings[j, 1] + dt * travel[1]
+        dv = v[k] - pings[j, 2] + dt * travel[2]
+        r = dx * dx + dv * dv
+        nd = nx[k] * dx + nv[k] * dv
+        depression = np.arctan2(-dv, np.abs(dx)) if not model.sonar.beam.is_uniform else None
+        fore = dt * travel[0]
+    r += fore * fore
+    np.sqrt(r, out=r)
+    nd += nt[k] * fore
+    inv = 1.0 / np.maximum(r, 1e-12)
+    u = fore * inv  # direction cosine on the fan's normal
+    cos_inc = nd * inv
+    np.negative(cos_inc, out=cos_inc)
+    ok = (r < model.r_limit) & (np.abs(u) <= model.u_cut) & (cos_inc > 0) & (r > 1e-9)
+    np.maximum(cos_inc, 0.0, out=cos_inc)
+    amp = np.sqrt(cos_inc) if model.law == "lambert" else cos_inc
+    amp *= inv
+    amp *= inv
+    if face_factor is None:
+        face_factor = _face_factor(sc.faces.facet_area, sc.faces.reflectivity, model)
+    amp *= face_factor[sc.face][k]
+    amp *= _beam_h_root(u, model.beam_h)
+    if depression is not None:
+        sign = np.where(sc.nominal[:, 1] > 0, 1.0, -1.0)
+        tilt = depression - model.sonar.tilt - sign[k] * roll[j]
+        amp *= np.sqrt(model.sonar.beam(tilt))
+    amp[~ok] = 0.0
+    re, im = _phasor(r, model.wavelength)
+    re *= amp
+    im *= amp
+    slot = (sc.nominal[:, 1] > 0).astype(np.int64) if len(sides) == 2 else None
+    row = j * len(sides)
+    if slot is not None:
+        row += slot[k]
+    np.minimum(r, model.r_limit, out=r)  # dead terms (amplitude 0) stay on the grid
+    return _Terms(row, r, re, im, int(np.count_nonzero(amp)))
+
+
+def _phasor(r: np.ndarray, wavelength: float) -> tuple[np.ndarray, np.ndarray]:
+    """Real and imaginary parts of ``exp(−4πi r / λ)``, to ~1e-7.
+
+    The two-way path is reduced to a fraction of a cycle in float64 before :func:`cos_sin`.
+    """
+    angle = r * (2.0 / wavelength)  # two-way path in wavelengths
+    angle -= np.rint(angle)
+    angle *= -2.0 * math.pi
+    return cos_sin(angle)
+
+
+def _pair_index(
+    position: np.ndarray,
+    pings: np.ndarray,
+    model: _Model,
+    off: float,
+    travel: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Scatterer and ping indices of the pairs within the horizontal beam's reach."""
     order = np.argsort(pings[:, 0], kind="stable")
     tp = pings[order, 0]
-    u = model.u_cut
-    rho = np.hypot(sc.position[:, 1], sc.position[:, 2]) + off
-    reach = rho * u / math.sqrt(1.0 - u * u) + off + 1e-9
-    t = sc.position[:, 0]
+    rho = np.hypot(position[:, 1], position[:, 2]) + off
+    reach = _reach(rho, model, _LEVEL if travel is None else travel) + off + 1e-9
+    t = position[:, 0]
     lo = np.searchsorted(tp, t - reach, side="left")
     hi = np.searchsorted(tp, t + reach, side="right")
     counts = hi - lo
     k = np.repeat(np.arange(len(t)), counts)
-    j = order[lo[k] + (np.arange(len(k)) - (np.cumsum(counts) - counts)[k])]
-    slot = (
-        (sc.nominal[:, 1] > 0).astype(np.int64) if len(sides) == 2 else np.zeros(len(t), np.int64)
-    )
-    sign = np.where(sc.nominal[:, 1] > 0, 1.0, -1.0)
-    r, c, ok = _amplitudes(sc, k, pings[j], roll[j], sign[k], model)
-    row = j[ok] * len(sides) + slot[k[ok]]
-    return row, grid.position(r[ok]), c[ok]
+    j = np.arange(len(k)) - np.repeat(np.cumsum(counts) - counts - lo, counts)
+    return k, order[j]
+
+
+def _face_factor(facet_area: np.ndarray, reflectivity: np.ndarray, model: _Model) -> np.ndarray:
+    """``size sqrt(R) / λ`` per face (size ``sqrt(a² area_ref)``, or ``a²`` if 0), (m,)."""
+    size = np.sqrt(facet_area * model.area_ref) if model.area_ref > 0 else facet_area
+    return size * np.sqrt(reflectivity) / model.wavelength
+
+
+def _beam_h_root(u: np.ndarray, beam_h: HorizontalBeam | None) -> np.ndarray | float:
+    """Square root of the two-way horizontal gain at direction cosines u (amplitude gain)."""
+    if beam_h is None:
+        return 1.0
+    if beam_h.kind == "gaussian":
+        a = u * (1.0 / beam_h.width)
+        a *= a
+        np.minimum(a, 16.0, out=a)
+        a *= -2.0 * math.log(2.0)
+        g = np.exp(a, out=a)
+        g[np.abs(u) > beam_h.cutoff] = 0.0
+        return g
+    return np.sqrt(beam_h(u))
 
 
 def _amplitudes(

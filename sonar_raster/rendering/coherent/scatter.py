@@ -88,6 +88,9 @@ def scatter_surface(scene: Scene, local: np.ndarray, spacing: float | np.ndarray
 class Scatterers:
     """One chunk of scatterers in a frame (along, starboard, up) relative to its origin.
 
+    Per-face quantities (normal, facet area, R) are kept once per face and looked up through
+    ``face`` when asked for, so culling and the visibility test copy only four arrays.
+
     Attributes
     ----------
     face : ndarray, shape (k,), int64
@@ -98,43 +101,64 @@ class Scatterers:
         Facet centroid, metres (visibility and culling use it).
     position : ndarray, shape (k, 3)
         Jittered scatterer position, metres (the echo uses it).
-    normal : ndarray, shape (k, 3)
-        Unit normal of the parent face in frame components.
-    facet_area : ndarray, shape (k,)
-        a², m².
-    reflectivity : ndarray, shape (k,)
-        R.
+    faces : FaceTable
+        Normals (frame components), facet areas and R of every face of the surface.
     """
 
     face: np.ndarray
     cell: np.ndarray
     nominal: np.ndarray
     position: np.ndarray
-    normal: np.ndarray
-    facet_area: np.ndarray
-    reflectivity: np.ndarray
+    faces: FaceTable
 
-    def take(self, keep: np.ndarray) -> Scatterers:
-        """The scatterers selected by an index or mask array."""
-        return Scatterers(*(getattr(self, f)[keep] for f in _FIELDS))
+    @property
+    def normal(self) -> np.ndarray:
+        """Unit normal of the parent face in frame components, shape (k, 3)."""
+        return self.faces.normal[self.face]
+
+    @property
+    def facet_area(self) -> np.ndarray:
+        """a², m², shape (k,)."""
+        return self.faces.facet_area[self.face]
+
+    @property
+    def reflectivity(self) -> np.ndarray:
+        """R, shape (k,)."""
+        return self.faces.reflectivity[self.face]
+
+    def take(self, keep: np.ndarray | slice) -> Scatterers:
+        """The scatterers selected by an index or mask array, or a slice."""
+        nominal = self.nominal[keep]
+        same = self.position is self.nominal
+        position = nominal if same else self.position[keep]
+        return Scatterers(self.face[keep], self.cell[keep], nominal, position, self.faces)
 
     def jittered(self, axes: np.ndarray, jitter: float, seed: int) -> Scatterers:
         """The same scatterers moved by their jitter (rms ``jitter`` metres per axis)."""
         if jitter <= 0 or len(self.face) == 0:
             return self
-        moved = self.nominal + _rotate(jitter * _gaussian3(self.face, self.cell, seed), axes)
-        return Scatterers(
-            self.face,
-            self.cell,
-            self.nominal,
-            moved,
-            self.normal,
-            self.facet_area,
-            self.reflectivity,
-        )
+        moved = _rotate(_gaussian3(self.face, self.cell, seed), jitter * axes)
+        moved += self.nominal
+        return Scatterers(self.face, self.cell, self.nominal, moved, self.faces)
 
 
-_FIELDS = ("face", "cell", "nominal", "position", "normal", "facet_area", "reflectivity")
+@dataclass(frozen=True)
+class FaceTable:
+    """Per-face quantities of a surface in one frame.
+
+    Attributes
+    ----------
+    normal : ndarray, shape (m, 3)
+        Unit normals, frame components.
+    facet_area : ndarray, shape (m,)
+        a², m².
+    reflectivity : ndarray, shape (m,)
+        R.
+    """
+
+    normal: np.ndarray
+    facet_area: np.ndarray
+    reflectivity: np.ndarray
 
 
 def generate(
@@ -143,6 +167,7 @@ def generate(
     origin: np.ndarray,
     bounds: np.ndarray,
     chunk: int,
+    normal_axes: np.ndarray | None = None,
 ) -> Iterator[Scatterers]:
     """Yield the scatterers whose facet centroid lies in ``bounds``, about ``chunk`` at a time.
 
@@ -158,14 +183,18 @@ def generate(
         Box in frame coordinates (min, max per axis), metres.
     chunk : int
         Scatterers per chunk (whole runs, so a chunk may exceed it by one row).
+    normal_axes : ndarray, shape (3, 3), optional
+        Orthonormal rows the normals are given in (default ``axes``; the fan's axes when
+        ``axes`` is a crabbed or pitched segment's shear map).
     """
     proj = project(surface.tri, origin, axes, _rotate)
     ids = np.flatnonzero(overlaps(proj, bounds))
     if len(ids) == 0:
         return
-    normal = _rotate(surface.normal, axes)
+    normal = _rotate(surface.normal, axes if normal_axes is None else normal_axes)
+    faces = FaceTable(normal, surface.facet_area, surface.reflectivity)
     for runs in runs_in_box(proj, surface.n_sub, ids, bounds, row_block=_ROW_BLOCK, chunk=chunk):
-        yield _expand(surface, normal, ids, runs)
+        yield _expand(surface.n_sub, faces, ids, runs)
 
 
 def _rotate(v: np.ndarray, axes: np.ndarray) -> np.ndarray:
@@ -173,47 +202,41 @@ def _rotate(v: np.ndarray, axes: np.ndarray) -> np.ndarray:
     return np.einsum("kj,cj->kc", v, axes)
 
 
-def _expand(
-    surface: ScatterSurface,
-    normal: np.ndarray,
-    ids: np.ndarray,
-    runs: Runs,
-) -> Scatterers:
+def _expand(n_sub: np.ndarray, faces: FaceTable, ids: np.ndarray, runs: Runs) -> Scatterers:
     """Materialise the facets of some runs (``runs.tri`` indexes ``ids``) as scatterers."""
     run, offset = runs.cells()
     j = runs.lo[run] + offset
     nominal = runs.base[run] + runs.slope[run] * j[:, None].astype(np.float64)
     face = ids[runs.tri[run]]
-    cell = runs.i[run] * surface.n_sub[face] + j
-    return Scatterers(
-        face=face,
-        cell=cell,
-        nominal=nominal,
-        position=nominal,
-        normal=normal[face],
-        facet_area=surface.facet_area[face],
-        reflectivity=surface.reflectivity[face],
-    )
+    cell = runs.i[run] * n_sub[face] + j
+    return Scatterers(face=face, cell=cell, nominal=nominal, position=nominal, faces=faces)
 
 
 def _splitmix(z: np.ndarray) -> np.ndarray:
-    """SplitMix64 finaliser on uint64 arrays (wrapping arithmetic)."""
+    """SplitMix64 finaliser on uint64 arrays (wrapping arithmetic; a new array)."""
     z = z + _GOLDEN
-    z = (z ^ (z >> np.uint64(30))) * _MIX1
-    z = (z ^ (z >> np.uint64(27))) * _MIX2
-    return z ^ (z >> np.uint64(31))
+    z ^= z >> np.uint64(30)
+    z *= _MIX1
+    z ^= z >> np.uint64(27)
+    z *= _MIX2
+    z ^= z >> np.uint64(31)
+    return z
 
 
 def _uniforms(face: np.ndarray, cell: np.ndarray, seed: int, count: int) -> np.ndarray:
     """``count`` uniforms in (0, 1) per (face, cell), shape (count, k): a pure function."""
-    key = np.full(len(face), np.uint64(seed & 0xFFFFFFFFFFFFFFFF), dtype=np.uint64)
-    key = _splitmix(key ^ face.astype(np.uint64))
-    key = _splitmix(key ^ cell.astype(np.uint64))
+    key = face.astype(np.uint64)
+    key ^= np.uint64(seed & 0xFFFFFFFFFFFFFFFF)
+    key = _splitmix(key)
+    key ^= cell.astype(np.uint64)
+    key = _splitmix(key)
     out = np.empty((count, len(face)))
     for c in range(count):
         step = np.uint64(((c + 1) * 0x9E3779B97F4A7C15) & 0xFFFFFFFFFFFFFFFF)
-        bits = _splitmix(key + step) >> np.uint64(11)
-        out[c] = (bits.astype(np.float64) + 0.5) * (1.0 / (1 << 53))
+        bits = _splitmix(key + step)
+        bits >>= np.uint64(11)
+        np.multiply(bits.view(np.int64), 1.0 / (1 << 53), out=out[c])  # int64: SIMD convert
+        out[c] += 0.5 / (1 << 53)
     return out
 
 
@@ -222,12 +245,30 @@ def _gaussian3(face: np.ndarray, cell: np.ndarray, seed: int) -> np.ndarray:
     u = _uniforms(face, cell, seed, 4)
     r1 = np.sqrt(-2.0 * np.log(u[0]))
     r2 = np.sqrt(-2.0 * np.log(u[2]))
-    g = np.stack(
-        [
-            r1 * np.cos(2 * math.pi * u[1]),
-            r1 * np.sin(2 * math.pi * u[1]),
-            r2 * np.cos(2 * math.pi * u[3]),
-        ],
-        axis=1,
-    )
-    return np.clip(g, -JITTER_CLIP, JITTER_CLIP)
+    g = np.empty((len(face), 3))
+    u[1:4:2] -= 0.5  # angles in [-π, π): the float32 cosine's best range
+    cos1, sin1 = cos_sin((2 * math.pi) * u[1])
+    cos3, _ = cos_sin((2 * math.pi) * u[3])
+    np.multiply(r1, cos1, out=g[:, 0])
+    np.multiply(r1, sin1, out=g[:, 1])
+    np.multiply(r2, cos3, out=g[:, 2])
+    g[:, :2] *= -1.0  # cos(a - π) = -cos a, sin(a - π) = -sin a
+    g[:, 2] *= -1.0
+    return np.clip(g, -JITTER_CLIP, JITTER_CLIP, out=g)
+
+
+def cos_sin(angle: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Cosine and sine of float64 angles in [-π, π], to ~1e-7 (float32 SIMD, corrected).
+
+    The angle is rounded to float32 for numpy's vectorised float32 cosine and sine (the float64
+    ones are several times slower), and the rounding is corrected to first order in float64.
+    """
+    coarse = angle.astype(np.float32)
+    delta = angle - coarse  # |delta| <= 1.2e-7
+    c = np.cos(coarse).astype(np.float64)
+    s = np.sin(coarse).astype(np.float64)
+    cos = s * delta
+    np.subtract(c, cos, out=cos)  # cos(a + d) ~ cos a - d sin a
+    c *= delta
+    c += s  # sin(a + d) ~ sin a + d cos a
+    return cos, c
