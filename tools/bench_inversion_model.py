@@ -7,7 +7,7 @@ inputs in one process, interleaved, and each row gives the best of ``--repeats``
 ratio and the largest difference relative to the baseline's largest value (``max |new − old| /
 max |old|`` over every output of the call).
 
-Inputs are built as :func:`sonar_raster.inversion.surface._level` builds one side: 12 m
+Inputs are built as the surface fit (``sonar_raster.inversion.surface``) builds one side: 12 m
 altitude, 5 cm slant bins and ground cells (``ground_axis``), pings 0.1 m apart,
 ``SUBSAMPLES`` points per cell, a wavy seabed (oblique sand waves, 0.1 m, plus a 2 m mound that
 casts layover), random R and Φ, and a likelihood weight that is zero over the water column.
@@ -29,6 +29,10 @@ largest difference, and the rest of the fit's time. (Two separate fits would not
 the fit is chaotic under rounding, a 1e-15 relative change in the model moves its Z by
 decimetres.)
 
+The ``deposit`` rows time ``Geometry(deposit="segment")`` (each point's return spread over
+its slant-range interval, boxes as the renderer bins) against the default tent deposit on the
+same inputs; the ratio is segment / tent (no baseline: the two models differ by design).
+
 Usage: ``python tools/bench_inversion_model.py [--sizes 200x600,1000x2000] [--repeats 5]
 [--fit 200x600]``.
 """
@@ -47,12 +51,9 @@ from scipy import sparse
 from sonar_raster.inversion import model
 from sonar_raster.inversion.ground import ground_axis
 from sonar_raster.inversion.model import Evaluation, Geometry, roughness
-from sonar_raster.inversion.surface import (
-    SUBSAMPLES,
-    bspline_basis,
-    shadow_adjoint,
-    soft_shadow,
-)
+from sonar_raster.inversion.surface.layout import bspline_basis
+from sonar_raster.inversion.surface.problem import shadow_adjoint, soft_shadow
+from sonar_raster.inversion.surface.solve import SUBSAMPLES
 
 ALT, BIN, SPACING = 12.0, 0.05, 0.1
 
@@ -475,6 +476,44 @@ def context(case: Case) -> list[tuple[str, float]]:
     return out
 
 
+def deposit_rows(case: Case) -> list[tuple[str, float, float]]:
+    """Best times of the tent deposit (the fit's) and the segment deposit, same calls and Zs.
+
+    Returns (label, tent s, segment s) for forward, adjoint after forward and jacobian_z after
+    forward; each call gets a new Z, as in :func:`race`. The deposits run one after the other
+    (their order alternating by row), not interleaved: interleaved, each would evict the
+    other's cache entry and allocate afresh.
+    """
+    tent = case.geom
+    seg = Geometry(tent.x, tent.dx, tent.dy, tent.range_bin, tent.bins, tent.subsamples, "segment")
+    r, phi, grad, w = case.r, case.phi, case.grad, case.weight
+    calls = {
+        "forward (new Z)": (lambda z, g: model.forward(r, phi, z, g), None),
+        "adjoint after forward": (
+            lambda z, g: model.adjoint(grad, r, phi, z, g),
+            lambda z, g: model.forward(r, phi, z, g),
+        ),
+        "jacobian_z after forward": (
+            lambda z, g: model.jacobian_z(w, r, phi, z, g),
+            lambda z, g: model.forward(r, phi, z, g),
+        ),
+    }
+    out = []
+    for i, (label, (call, prepare)) in enumerate(calls.items()):
+        best = [np.inf, np.inf]
+        for which in (0, 1) if i % 2 == 0 else (1, 0):
+            g = (tent, seg)[which]
+            model.clear_cache()  # then each deposit recycles its own evicted entries
+            for z in case.zs:
+                if prepare is not None:
+                    prepare(z, g)
+                start = time.process_time()
+                call(z, g)
+                best[which] = min(best[which], time.process_time() - start)
+        out.append((label, best[0], best[1]))
+    return out
+
+
 def fit_race(pings: int, bins: int) -> None:
     """Run ``fit_surface`` once, every model call made by both paths, and total their times.
 
@@ -483,6 +522,7 @@ def fit_race(pings: int, bins: int) -> None:
     its CPU time.
     """
     from sonar_raster.inversion import surface
+    from sonar_raster.inversion.surface import problem, solve
 
     case = make_case(pings, bins, 1)
     rng = np.random.default_rng(3)
@@ -515,15 +555,16 @@ def fit_race(pings: int, bins: int) -> None:
 
         return call
 
-    kept = (surface.forward, surface.adjoint, model.jacobian_z)
+    kept = (problem.forward, problem.adjoint, solve.forward, solve.jacobian_z)
     try:
-        surface.forward, surface.adjoint = both("forward"), both("adjoint")
-        model.jacobian_z = both("jacobian_z")  # type: ignore[assignment]
+        problem.forward = solve.forward = both("forward")  # type: ignore[assignment]
+        problem.adjoint = both("adjoint")  # type: ignore[assignment]
+        solve.jacobian_z = both("jacobian_z")  # type: ignore[assignment]
         start = time.process_time()
         surface.fit_surface(sides, BIN, ping_spacing=SPACING)
         total = time.process_time() - start
     finally:
-        surface.forward, surface.adjoint, model.jacobian_z = kept  # type: ignore[assignment]
+        problem.forward, problem.adjoint, solve.forward, solve.jacobian_z = kept  # type: ignore[assignment]
     rest = total - sum(v[0] + v[1] for v in spent.values())
     print(f"\nfit_surface, {pings} pings x {bins} bins x 2 sides: model calls in the fit")
     print(f"{'call':12s} {'calls':>6s} {'old s':>8s} {'new s':>8s} {'ratio':>6s} {'max diff':>9s}")
@@ -560,6 +601,10 @@ def main() -> None:
             )
         for label, seconds in context(case):
             print(f"{'context: ' + label:38s} {seconds * 1e3:9.2f}")
+        model.clear_cache()
+        print(f"{'deposit':28s} {'tent ms':>9s} {'seg. ms':>9s} {'seg/tent':>8s}")
+        for label, t_tent, t_seg in deposit_rows(case):
+            print(f"{label:28s} {t_tent * 1e3:9.2f} {t_seg * 1e3:9.2f} {t_seg / t_tent:8.2f}")
         model.clear_cache()
     if args.fit:
         fit_race(*(int(v) for v in args.fit.split("x")))

@@ -1,7 +1,7 @@
 """A report on a real side-scan XTF pass: waterfall, altitude, inversion, wreck height.
 
 Usage: ``python tools/report_real.py FILE.xtf -o DIR [--pings A:B] [--max-iter N]
-[--levels N] [--side starboard]``
+[--levels N] [--side starboard] [--method profiles|surface]``
 
 Writes into DIR:
 
@@ -184,6 +184,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--pings", help="ping range A:B (default: all)")
     ap.add_argument("--max-iter", type=int, default=40)
     ap.add_argument("--levels", type=int, default=3)
+    ap.add_argument("--method", default="profiles", choices=("profiles", "surface"),
+                    help="the inversion (surface: one surface for both sides, its own levels)")
     ap.add_argument("--side", default="starboard", choices=("port", "starboard"),
                         help="the side with the object")  # fmt: skip
     args = ap.parse_args(argv)
@@ -197,8 +199,11 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.output)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    result = invert_xtf(args.xtf, pings=parse_pings(args.pings), max_iter=args.max_iter,
-                        levels=args.levels)  # fmt: skip
+    options = {"max_iter": args.max_iter}
+    if args.method == "profiles":
+        options["levels"] = args.levels
+    result = invert_xtf(args.xtf, pings=parse_pings(args.pings), method=args.method,
+                        **options)  # fmt: skip
     seconds = time.perf_counter() - t0
     image, nav, track = result.image, result.navigation, result.track
     dr = image.sonar.range_bin

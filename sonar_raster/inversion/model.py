@@ -24,9 +24,22 @@ nearest slant-bin centres by linear weights, ``u = ρ / range_bin − 1/2``, ``k
 plane, at ``x + o dx`` and ``Z + o dx Zx`` for ``o = (s + 1/2)/n − 1/2``, each split the same
 way: the cell's return then covers its range extent instead of one range (against the exact
 density of a flat seabed, 5 cm cells and bins: 5.6 % off at n = 1, 1.3 % at 2, 0.5 % at 3).
-The points' ranges move with the cell's slope too, which the gradients carry. This carries
-the foreshortening ``dr/dx = (x + Z Zx) / ρ`` and the misregistration of relief in slant
-range, and sums the cells that fold onto one range (layover) as the renderer does.
+The points' ranges move with the cell's slope too, which the gradients carry.
+
+With ``Geometry.deposit = "segment"`` the renderer's boxes are followed instead (a return at
+range r belongs to bin ``⌊r / range_bin⌋``): point s stands for the sub-segment of the tangent
+plane between offsets ``(s/n − 1/2) dx`` and ``((s+1)/n − 1/2) dx``, its energy is spread
+uniformly over the slant-range interval ``[lo, hi]`` between its two ends' ranges (in bins),
+and bin k takes the overlap ``clip(hi − k, 0, 1) − clip(lo − k, 0, 1)`` over ``hi − lo``; an
+interval inside one bin (``⌊lo⌋ = ⌊hi⌋``, which includes zero length) puts all its energy
+there with weight 1. The shares are piecewise linear in ``lo`` and ``hi`` (kinks where an end
+crosses a bin edge), ``∂w_k/∂lo = (w_k − [k = ⌊lo⌋]) / (hi − lo)`` and
+``∂w_k/∂hi = ([k = ⌊hi⌋] − w_k) / (hi − lo)``, and the ends move with Z and Zx as the tent's
+points do. (Where a segment passes its closest point to the sonar, a facet seen at normal
+incidence as at nadir, the interval between its ends' ranges is used and the fold is missed.)
+Either deposit carries the foreshortening ``dr/dx = (x + Z Zx) / ρ`` and the misregistration
+of relief in slant range, and sums the cells that fold onto one range (layover) as the
+renderer does.
 
 The terms that depend on Z alone (q, its derivatives, every point's bins, weights and
 ``Z_s/ρ_s``) are prepared once per Z and reused by :func:`forward`, :func:`adjoint`,
@@ -125,6 +138,11 @@ class Geometry:
     subsamples : int
         Points each cell's return is spread over along its tangent plane (1: the cell centre
         only); see the module notes.
+    deposit : {"tent", "segment"}
+        How a point's return is shared among the bins: ``"tent"`` linearly between the two
+        nearest bin centres; ``"segment"`` uniformly over the slant-range interval of the
+        point's tangent-plane segment, each bin taking its exact overlap with the interval
+        (the renderer's boxes; see the module notes).
     """
 
     x: np.ndarray
@@ -133,6 +151,17 @@ class Geometry:
     range_bin: float
     bins: int
     subsamples: int = 1
+    deposit: str = "tent"
+
+    def __post_init__(self) -> None:
+        if self.deposit not in DEPOSITS:
+            raise ValueError(
+                f"deposit {self.deposit!r} is not known: use one of {', '.join(DEPOSITS)}"
+            )
+
+
+#: The ways a point's return is shared among the slant bins (``Geometry.deposit``).
+DEPOSITS = ("tent", "segment")
 
 
 #: Prepared cells kept for reuse per thread (forward and adjoint of one Z share them).
@@ -169,7 +198,7 @@ class _Store(threading.local):
     """Per thread: the last :data:`CACHE_SIZE` prepared cells and a work buffer."""
 
     def __init__(self) -> None:
-        self.entries: list[tuple[tuple, np.ndarray, np.ndarray, _Cells]] = []
+        self.entries: list[tuple[tuple, np.ndarray, np.ndarray, _Cells | _Segments]] = []
         self.work = np.empty(0)
 
 
@@ -195,14 +224,21 @@ def _work(*sizes: int) -> list[np.ndarray]:
     return [_STORE.work[a:b] for a, b in zip(starts[:-1], starts[1:], strict=True)]
 
 
-def _cells(z: np.ndarray, geom: Geometry) -> _Cells:
+def _cells(z: np.ndarray, geom: Geometry) -> _Cells | _Segments:
     """The model's per-cell terms for ``z``, reused while ``z`` and ``geom`` are unchanged.
 
     An entry is reused only when ``z`` and ``geom.x`` equal (by value) those it was made from,
     so changing ``z`` in place is safe. The oldest entry's arrays are recycled for the new one.
     """
     z = np.ascontiguousarray(z, np.float64)  # the fit's Z is often a transposed product
-    key = (float(geom.dx), float(geom.range_bin), int(geom.bins), int(geom.subsamples), z.shape)
+    key = (
+        float(geom.dx),
+        float(geom.range_bin),
+        int(geom.bins),
+        int(geom.subsamples),
+        geom.deposit,
+        z.shape,
+    )
     entries = _STORE.entries
     for i, (k, x, zc, cells) in enumerate(entries):
         if k == key and np.array_equal(x, geom.x) and _same(zc, z):
@@ -213,10 +249,20 @@ def _cells(z: np.ndarray, geom: Geometry) -> _Cells:
         zc, cells = spare[2], spare[3]
         zc[...] = z
     else:
-        zc, cells = z.copy(), _empty_cells(z.shape, geom)
-    _fill_blocks(cells, z, geom)
+        zc = z.copy()
+        cells = _empty_cells(z.shape, geom) if geom.deposit == "tent" else _empty_segments(z, geom)
+    if isinstance(cells, _Segments):
+        _fill_segments_blocks(cells, z, geom)
+    else:
+        _fill_blocks(cells, z, geom)
     entries.insert(0, (key, np.array(geom.x, np.float64), zc, cells))
     return cells
+
+
+def _tent_cells(z: np.ndarray, geom: Geometry) -> _Cells:
+    c = _cells(z, geom)
+    assert isinstance(c, _Cells)
+    return c
 
 
 def _same(cached: np.ndarray, z: np.ndarray) -> bool:
@@ -277,25 +323,7 @@ def _fill_cells(c: _Cells, z: np.ndarray, geom: Geometry, first: int = 0) -> Non
     pings, cells = z.shape
     x = np.asarray(geom.x, np.float64)
     rho, zx, a, b = (v.reshape(pings, cells) for v in _work(*[z.size] * 4))
-    np.multiply(z, z, out=rho)
-    rho += x * x
-    np.sqrt(rho, out=rho)
-    _slope_x(z, geom.dx, zx)
-    num = c.q
-    np.multiply(x, zx, out=num)
-    num -= z
-    lit = num > 0.0
-    q, dq_dz, dq_dzx = c.q, c.dq_dz, c.dq_dzx
-    np.maximum(num, 0.0, out=q)
-    q /= rho
-    np.divide(x, rho, out=dq_dzx)
-    dq_dzx *= lit
-    np.multiply(rho, rho, out=a)
-    np.multiply(q, z, out=b)
-    b /= a
-    np.divide(-1.0, rho, out=dq_dz)
-    dq_dz -= b
-    dq_dz *= lit
+    _fill_lit((c.q, c.dq_dz, c.dq_dzx), z, geom, (rho, zx, a, b))
     rows = np.arange(first, first + pings, dtype=np.intp)[:, None] * c.width + _PAD
     for s, offset in enumerate(c.offsets):
         zs, rs = a, b
@@ -313,6 +341,39 @@ def _fill_cells(c: _Cells, z: np.ndarray, geom: Geometry, first: int = 0) -> Non
         np.copyto(index, zs, casting="unsafe")  # NaN: a huge negative number, clipped below
         np.clip(index, -_PAD, geom.bins, out=index)
         index += rows
+
+
+def _fill_lit(
+    out: tuple[np.ndarray, np.ndarray, np.ndarray],
+    z: np.ndarray,
+    geom: Geometry,
+    work: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+) -> None:
+    """q, ∂q/∂Z and ∂q/∂Zx of ``z`` into ``out``; leaves ρ and Zx in ``work[0]``, ``work[1]``.
+
+    ``work`` holds four arrays shaped as ``z``; the last two are scratch.
+    """
+    q, dq_dz, dq_dzx = out
+    rho, zx, a, b = work
+    x = np.asarray(geom.x, np.float64)
+    np.multiply(z, z, out=rho)
+    rho += x * x
+    np.sqrt(rho, out=rho)
+    _slope_x(z, geom.dx, zx)
+    num = q
+    np.multiply(x, zx, out=num)
+    num -= z
+    lit = num > 0.0
+    np.maximum(num, 0.0, out=q)
+    q /= rho
+    np.divide(x, rho, out=dq_dzx)
+    dq_dzx *= lit
+    np.multiply(rho, rho, out=a)
+    np.multiply(q, z, out=b)
+    b /= a
+    np.divide(-1.0, rho, out=dq_dz)
+    dq_dz -= b
+    dq_dz *= lit
 
 
 def _splat_block(
@@ -339,7 +400,7 @@ def _splat_block(
     return low[span].reshape(-1, c.width)
 
 
-def _padded(field: np.ndarray, c: _Cells, out: np.ndarray | None = None) -> np.ndarray:
+def _padded(field: np.ndarray, c: _Cells | _Segments, out: np.ndarray | None = None) -> np.ndarray:
     """``field`` (pings, bins) in the flat layout of :class:`_Cells`, zero on the pads."""
     pings = field.shape[0]
     out = np.empty(pings * c.width) if out is None else out
@@ -391,7 +452,9 @@ def roughness(r: np.ndarray, edge: float = 0.0) -> tuple[float, np.ndarray, np.n
 
 def forward(r: np.ndarray, phi: np.ndarray, z: np.ndarray, geom: Geometry) -> np.ndarray:
     """Model intensity per metre of slant range, shape (pings, bins)."""
-    c = _cells(z, geom)
+    if geom.deposit == "segment":
+        return _segment_forward(r, phi, z, geom)
+    c = _tent_cells(z, geom)
     shape = c.q.shape
     r, phi = np.broadcast_to(r, shape), np.broadcast_to(phi, shape)
     out = np.empty((shape[0], geom.bins))
@@ -463,9 +526,13 @@ def evaluate(
     several points per cell (``geom.subsamples``) ``b`` is the mean over the points and each
     point s adds ``(e/n) b'_s Z_s/ρ_s`` directly and ``(e/n) b'_s (Z_s/ρ_s) o_s dx`` through
     the transposed stencil (its range moves with the slope); the diagonals are then
-    approximate (they only scale the steps).
+    approximate (they only scale the steps). With ``geom.deposit == "segment"`` the gradients
+    are :func:`adjoint`'s, the Z diagonal that of 2 JᵀJ from :func:`jacobian_z`, and the R and
+    Φ diagonals sum each point's squared bin shares (approximate).
     """
-    c = _cells(z, geom)
+    if geom.deposit == "segment":
+        return _segment_evaluate(image, weight, r, phi, z, geom, smooth, edge)
+    c = _tent_cells(z, geom)
     rb, dx, n = geom.range_bin, geom.dx, c.points
     e = c.q * phi * r * dx
     res = forward(r, phi, z, geom) - image
@@ -528,7 +595,9 @@ def jacobian_z(
     Exact, with the same terms as :func:`evaluate`; explicit zeros (shadowed cells, rows of
     zero weight) are dropped.
     """
-    c = _cells(z, geom)
+    if geom.deposit == "segment":
+        return _segment_jacobian(weight, r, phi, z, geom)
+    c = _tent_cells(z, geom)
     n, bins = c.points, geom.bins
     pings, cells = shape = c.q.shape
     r, phi = np.broadcast_to(r, shape), np.broadcast_to(phi, shape)
@@ -606,6 +675,46 @@ def _jacobian_block(
     rows[:, :-1, 2], rows[:, -1:, 2] = rows_own[:, 1:], rows_own[:, -1:]
 
 
+def deposit_matrix(z: np.ndarray, geom: Geometry) -> tuple[sparse.csr_matrix, np.ndarray]:
+    """How each ground cell's return is shared among the slant bins, and the cells' ``q``.
+
+    Returns ``(D, q)``: ``D`` a (pings·bins) × (pings·cells) matrix whose column j holds the
+    shares of cell j's return in its ping's bins (by ``geom.deposit``; shares falling outside
+    the image are dropped), and ``q = max(0, x Zx − Z) / ρ`` (pings, cells), so that
+    ``forward(r, phi, z, geom) == (D @ (phi r q).ravel()).reshape(pings, bins) · dx / rb``.
+    The Jacobian of the image wrt per-cell Φ (or R) is ``D`` times a diagonal.
+    """
+    z = np.ascontiguousarray(z, dtype=np.float64)
+    c = _cells(z, geom)
+    pings, cells = z.shape
+    rows, cols, vals = [], [], []
+    column = np.arange(pings * cells)
+
+    def add(index: np.ndarray, share: np.ndarray) -> None:
+        ping, k = np.divmod(index, c.width)
+        k = k - _PAD
+        keep = (k >= 0) & (k < geom.bins) & (share != 0.0)
+        rows.append((ping * geom.bins + k)[keep])
+        cols.append(column[keep])
+        vals.append(share[keep] / c.points)
+
+    everything = slice(0, pings * cells)
+    for point in range(c.points):
+        if isinstance(c, _Segments):
+            for j in range(int(c.reach[0])):
+                index = _segment_index(c, point, everything, j, geom.bins)
+                add(index, _segment_weight(c, point, everything, j).copy())
+        else:
+            t = c.t[point]
+            add(c.index[point], 1.0 - t)
+            add(c.index[point] + 1, t.copy())
+    matrix = sparse.csr_matrix(
+        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+        shape=(pings * geom.bins, pings * cells),
+    )
+    return matrix, c.q.copy()
+
+
 def gauss_newton_z(
     grad_z: np.ndarray,
     weight: np.ndarray,
@@ -655,7 +764,9 @@ def adjoint(
         ``∂E/∂R``, ``∂E/∂Φ``, ``∂E/∂Z``: the chain rule of :func:`evaluate` (shadowed cells,
         ``q = 0``, have a zero derivative wrt Z through ``q``).
     """
-    c = _cells(z, geom)
+    if geom.deposit == "segment":
+        return _segment_adjoint(grad_model, r, phi, z, geom)
+    c = _tent_cells(z, geom)
     shape = c.q.shape
     r, phi = np.broadcast_to(r, shape), np.broadcast_to(phi, shape)
     grad_r, grad_phi, grad_z = np.empty(shape), np.empty(shape), np.empty(shape)
@@ -728,3 +839,369 @@ def _adjoint_block(
     amp *= c.dq_dz[rows]
     gz += amp
     _add_slope_adjoint_x(via, dx, gz)
+
+
+# --- the "segment" deposit: each point's return spread over its slant-range interval --------
+
+
+@dataclass(frozen=True, eq=False)
+class _Segments:
+    """Per-cell terms of the segment model for one Z; (pings, cells) arrays unless noted.
+
+    Point s covers the tangent-plane segment between ground offsets ``ends[s]`` (metres from
+    the cell centre); its ends' slant ranges in bins are ``lo ≤ hi``, its first bin
+    ``k_lo = ⌊lo⌋`` and last ``k_lo + span``. Each (points, pings·cells) array is one row per
+    point. A point whose interval lies in one bin (``span = 0``) is stored as the whole box
+    (``w0 = 1``, ``top = 1``, ``inv = 1``) with ``glo = ghi = 0``: its weight is 1 and fixed.
+    """
+
+    q: np.ndarray  # max(0, x Zx − Z) / ρ
+    dq_dz: np.ndarray  # ∂q/∂Z where lit, else 0
+    dq_dzx: np.ndarray  # ∂q/∂Zx where lit, else 0
+    base: np.ndarray  # (pings·cells,) flat index of bin 0 of the cell's ping (layout of _Cells)
+    k_lo: np.ndarray  # (points, pings·cells) first bin, clipped to [−1, bins]
+    span: np.ndarray  # (points, pings·cells) last bin − first bin, ≥ 0
+    w0: np.ndarray  # (points, pings·cells) share of bin k_lo: (min(hi, k_lo + 1) − lo) inv
+    top: np.ndarray  # (points, pings·cells) hi − k_lo
+    inv: np.ndarray  # (points, pings·cells) 1 / (hi − lo)
+    glo: np.ndarray  # (points, pings·cells) inv ∂lo/∂Z (∂lo/∂Z_end = Z_end / (ρ_end rb))
+    ghi: np.ndarray  # (points, pings·cells) inv ∂hi/∂Z
+    xlo: np.ndarray  # (points, pings·cells) inv ∂lo/∂Zx = glo × the lo end's ground offset
+    xhi: np.ndarray  # (points, pings·cells) inv ∂hi/∂Zx
+    ends: tuple[tuple[float, float], ...]  # ground offsets (o_a, o_b) of each point's ends
+    reach: np.ndarray  # (1,) int: 1 + the largest span (bins any point touches)
+    width: int  # bins + 4
+
+    @property
+    def points(self) -> int:
+        """Points per cell (``Geometry.subsamples``)."""
+        return len(self.ends)
+
+
+def _empty_segments(z: np.ndarray, geom: Geometry) -> _Segments:
+    n, (pings, cells) = geom.subsamples, z.shape
+    size, width = pings * cells, geom.bins + 2 * _PAD
+    ends = tuple(((s / n - 0.5) * geom.dx, ((s + 1) / n - 0.5) * geom.dx) for s in range(n))
+    base = np.repeat(np.arange(pings, dtype=np.intp) * width + _PAD, cells)
+
+    def shaped() -> np.ndarray:
+        return np.empty(z.shape)
+
+    def per_point(dtype: type = np.float64) -> np.ndarray:
+        return np.empty((n, size), dtype)
+
+    return _Segments(
+        q=shaped(),
+        dq_dz=shaped(),
+        dq_dzx=shaped(),
+        base=base,
+        k_lo=per_point(np.intp),
+        span=per_point(np.intp),
+        w0=per_point(),
+        top=per_point(),
+        inv=per_point(),
+        glo=per_point(),
+        ghi=per_point(),
+        xlo=per_point(),
+        xhi=per_point(),
+        ends=ends,
+        reach=np.ones(1, np.intp),
+        width=width,
+    )
+
+
+def _segment_cells(z: np.ndarray, geom: Geometry) -> _Segments:
+    c = _cells(z, geom)
+    assert isinstance(c, _Segments)
+    return c
+
+
+def _fill_segments_blocks(c: _Segments, z: np.ndarray, geom: Geometry) -> None:
+    """Compute every term of ``c`` for ``z`` in place, over blocks of whole pings."""
+    c.reach[0] = 1
+    x = np.asarray(geom.x, np.float64)
+    for rows, flat in _blocks(*z.shape):
+        zb = z[rows]
+        work = _work(*[zb.size] * 10)
+        rho, zx, a, b = (v.reshape(zb.shape) for v in work[:4])
+        _fill_lit((c.q[rows], c.dq_dz[rows], c.dq_dzx[rows]), zb, geom, (rho, zx, a, b))
+        xf = np.broadcast_to(x, zb.shape).ravel()
+        ends = (work[4], work[5]), (work[6], work[7])
+        for s, (oa, ob) in enumerate(c.ends):
+            for (u, zr), offset in zip(ends, (oa, ob), strict=True):
+                _end_range(zb.ravel(), zx.ravel(), xf, offset, geom.range_bin, (u, zr, a.ravel()))
+            (ua, za), (ub, zb_) = ends
+            _fill_point(c, (s, flat, oa, ob), (ua, za, ub, zb_), work[8:10], geom.bins)
+
+
+def _fill_point(
+    c: _Segments,
+    at: tuple[int, slice, float, float],
+    ends: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    work: list[np.ndarray],
+    bins: int,
+) -> None:
+    """Point ``at = (s, flat, o_a, o_b)``'s terms of ``c`` from its ends' ranges and slopes.
+
+    ``ends`` is ``(ua, za, ub, zb)``: each end's slant range in bins and ``∂u/∂Z_end``; ``ua``
+    and ``ub`` are overwritten, ``work`` holds two more scratch arrays.
+    """
+    s, flat, oa, ob = at
+    ua, za, ub, zb = ends
+    lo, hi = work
+    glo, ghi, xlo, xhi = c.glo[s, flat], c.ghi[s, flat], c.xlo[s, flat], c.xhi[s, flat]
+    swap = np.less(ub, ua)  # the segment's far end is the nearer
+    np.minimum(ua, ub, out=lo)
+    np.maximum(ua, ub, out=hi)
+    np.subtract(zb, za, out=ghi)  # (np.copyto with where= is ten times slower)
+    np.multiply(swap, ghi, out=glo)
+    ghi -= glo
+    ghi += za  # zb, or za where swapped
+    glo += za  # za, or zb where swapped
+    np.multiply(swap, ob - oa, out=xlo)
+    xlo += oa  # the lo end's ground offset
+    np.multiply(swap, oa - ob, out=xhi)
+    xhi += ob
+    k_lo, spanf = ua, ub
+    np.floor(lo, out=k_lo)
+    np.floor(hi, out=spanf)
+    spanf -= k_lo
+    span, first = c.span[s, flat], c.k_lo[s, flat]
+    np.copyto(span, spanf, casting="unsafe")  # NaN: a huge negative number, clipped below
+    np.clip(span, 0, bins + 1, out=span)
+    np.copyto(first, k_lo, casting="unsafe")
+    np.clip(first, -1, bins, out=first)
+    w0, top, inv = c.w0[s, flat], c.top[s, flat], c.inv[s, flat]
+    np.subtract(hi, k_lo, out=top)
+    np.minimum(top, 1.0, out=w0)
+    w0 -= lo
+    w0 += k_lo
+    np.subtract(hi, lo, out=inv)
+    # the interval lies in one bin: the whole box (top = 1, inv = 1), weight 1, fixed; where
+    # it does, top, hi − lo and w0 are below 1, so raising them to 1 sets them
+    point = spanf == 0.0
+    np.maximum(top, point, out=top)
+    np.maximum(inv, point, out=inv)
+    np.divide(1.0, inv, out=inv)
+    w0 *= inv
+    np.maximum(w0, point, out=w0)
+    np.logical_not(point, out=point)
+    glo *= inv
+    glo *= point
+    ghi *= inv
+    ghi *= point
+    xlo *= glo
+    xhi *= ghi
+    if span.size:
+        c.reach[0] = max(int(c.reach[0]), int(span.max()) + 1)
+
+
+def _end_range(
+    z: np.ndarray,
+    zx: np.ndarray,
+    x: np.ndarray,
+    offset: float,
+    range_bin: float,
+    out: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> None:
+    """Slant range in bins of the tangent-plane point ``offset`` from each cell centre.
+
+    Writes it and its derivative wrt that point's elevation, ``Z_e / (ρ_e range_bin)``, into
+    ``out[0]`` and ``out[1]`` (flat arrays); ``out[2]`` is scratch.
+    """
+    u, zr, ze = out
+    np.multiply(zx, offset, out=ze)
+    ze += z
+    np.add(x, offset, out=u)
+    u *= u
+    np.multiply(ze, ze, out=zr)
+    u += zr
+    np.sqrt(u, out=u)
+    np.divide(ze, u, out=zr)
+    zr /= range_bin
+    u /= range_bin
+
+
+def _segment_weight(c: _Segments, s: int, flat: slice, j: int) -> np.ndarray:
+    """Share of point s's return in its bin ``k_lo + j``, flat over the block ``flat``."""
+    if j == 0:
+        return c.w0[s, flat]
+    w = np.subtract(c.top[s, flat], j)
+    np.clip(w, 0.0, 1.0, out=w)
+    w *= c.inv[s, flat]
+    return w
+
+
+def _segment_index(c: _Segments, s: int, flat: slice, j: int, bins: int) -> np.ndarray:
+    """Flat layout index of point s's bin ``k_lo + j`` (a pad outside ``[0, bins)``)."""
+    k = c.k_lo[s, flat] + j
+    np.clip(k, -1, bins, out=k)
+    k += c.base[flat]
+    return k
+
+
+def _segment_forward(r: np.ndarray, phi: np.ndarray, z: np.ndarray, geom: Geometry) -> np.ndarray:
+    """:func:`forward` with ``geom.deposit == "segment"``."""
+    c = _segment_cells(z, geom)
+    shape = c.q.shape
+    r, phi = np.broadcast_to(r, shape), np.broadcast_to(phi, shape)
+    out = np.empty((shape[0], geom.bins))
+    for rows, flat in _blocks(*shape):
+        e = (c.q[rows] * phi[rows] * r[rows]).ravel()
+        e *= geom.dx / c.points
+        start = rows.start * c.width
+        sums = np.zeros((rows.stop - rows.start) * c.width)
+        for s in range(c.points):
+            for j in range(int(c.reach[0])):
+                index = _segment_index(c, s, flat, j, geom.bins) - start
+                sums += np.bincount(index, _segment_weight(c, s, flat, j) * e, sums.size)
+        grid = sums.reshape(-1, c.width)
+        np.divide(grid[:, _PAD : _PAD + geom.bins], geom.range_bin, out=out[rows])
+    return out
+
+
+def _segment_back(
+    padded: np.ndarray, c: _Segments, geom: Geometry, flat: slice
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Back-projection of a padded field over one block's cells, flat arrays.
+
+    Returns ``b`` (Σ over points and bins of weight × field), and ``∂/∂Z`` and ``∂/∂Zx`` of
+    Σ_s Σ_j field[k] ∂w/∂(ends) (per unit of each point's energy), through the interval ends.
+    """
+    size = flat.stop - flat.start
+    b, dz, dzx = np.zeros(size), np.zeros(size), np.zeros(size)
+    g_lo, g, d_lo, d_hi = np.empty(size), np.empty(size), np.empty(size), np.empty(size)
+    for s in range(c.points):
+        bs = np.take(padded, _segment_index(c, s, flat, 0, geom.bins), out=g_lo)
+        bs = bs * c.w0[s, flat]
+        for j in range(1, int(c.reach[0])):
+            np.take(padded, _segment_index(c, s, flat, j, geom.bins), out=g)
+            g *= _segment_weight(c, s, flat, j)
+            bs += g
+        last = c.k_lo[s, flat] + c.span[s, flat]
+        np.clip(last, -1, geom.bins, out=last)
+        last += c.base[flat]
+        g_hi = np.take(padded, last, out=g)
+        np.subtract(bs, g_lo, out=d_lo)  # ∂/∂lo × (hi − lo), per unit energy
+        np.subtract(g_hi, bs, out=d_hi)
+        dz += d_lo * c.glo[s, flat]
+        dz += d_hi * c.ghi[s, flat]
+        d_lo *= c.xlo[s, flat]
+        dzx += d_lo
+        d_hi *= c.xhi[s, flat]
+        dzx += d_hi
+        b += bs
+    return b, dz, dzx
+
+
+def _segment_adjoint(
+    grad_model: np.ndarray, r: np.ndarray, phi: np.ndarray, z: np.ndarray, geom: Geometry
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`adjoint` with ``geom.deposit == "segment"``."""
+    c = _segment_cells(z, geom)
+    shape = c.q.shape
+    r, phi = np.broadcast_to(r, shape), np.broadcast_to(phi, shape)
+    rb, dx, n = geom.range_bin, geom.dx, c.points
+    padded = _padded(np.asarray(grad_model, np.float64) / rb, c)
+    grad_r, grad_phi = np.empty(shape), np.empty(shape)
+    direct, via = np.empty(shape), np.empty(shape)
+    for rows, flat in _blocks(*shape):
+        b, dz, dzx = (v.reshape(-1, shape[1]) for v in _segment_back(padded, c, geom, flat))
+        b *= dx / n  # ∂E/∂(Φ R q)
+        grad_r[rows] = b * phi[rows] * c.q[rows]
+        grad_phi[rows] = b * r[rows] * c.q[rows]
+        amp = b * phi[rows] * r[rows]  # ∂E/∂q
+        e = c.q[rows] * phi[rows] * r[rows] * (dx / n)
+        direct[rows] = amp * c.dq_dz[rows] + e * dz
+        via[rows] = amp * c.dq_dzx[rows] + e * dzx
+    return grad_r, grad_phi, _add_slope_adjoint_x(via, dx, direct)
+
+
+def _segment_jacobian(
+    weight: np.ndarray, r: np.ndarray, phi: np.ndarray, z: np.ndarray, geom: Geometry
+) -> sparse.csr_matrix:
+    """:func:`jacobian_z` with ``geom.deposit == "segment"``."""
+    c = _segment_cells(z, geom)
+    bins, rb, dx, n = geom.bins, geom.range_bin, geom.dx, c.points
+    pings, cells = shape = c.q.shape
+    r, phi = np.broadcast_to(r, shape), np.broadcast_to(phi, shape)
+    root = np.sqrt(np.broadcast_to(weight, (pings, bins))).ravel()
+    slots = n * int(c.reach[0])
+    data = np.empty((pings, cells, 3, slots))
+    rows = np.empty((pings, cells, 3, slots), np.int64)
+    wl, wr = _slope_columns(cells, dx)
+    ping_row = np.repeat(np.arange(pings, dtype=np.int64) * bins, cells)
+    for rows_b, flat in _blocks(pings, cells):
+        amp = (phi[rows_b] * r[rows_b]).ravel() * (dx / (n * rb))
+        e = amp * c.q[rows_b].ravel()
+        direct_q, via_q = amp * c.dq_dz[rows_b].ravel(), amp * c.dq_dzx[rows_b].ravel()
+        size = flat.stop - flat.start
+        own, via = np.empty((size, slots)), np.empty((size, slots))
+        own_rows = np.empty((size, slots), np.int64)
+        for s in range(c.points):
+            span = c.span[s, flat]
+            dlo, dhi, xlo, xhi = c.glo[s, flat], c.ghi[s, flat], c.xlo[s, flat], c.xhi[s, flat]
+            for j in range(int(c.reach[0])):
+                slot = s * int(c.reach[0]) + j
+                w = _segment_weight(c, s, flat, j)
+                k = c.k_lo[s, flat] + j
+                inside = (k >= 0) & (k < bins)
+                row = ping_row[flat] + np.clip(k, 0, bins - 1)
+                w_row = root[row] * inside
+                at_lo = w - (1.0 if j == 0 else 0.0)  # ∂w/∂lo · (hi − lo)
+                at_hi = (span == j) - w  # ∂w/∂hi · (hi − lo)
+                own_rows[:, slot] = row
+                own[:, slot] = (direct_q * w + e * (at_lo * dlo + at_hi * dhi)) * w_row
+                via[:, slot] = (via_q * w + e * (at_lo * xlo + at_hi * xhi)) * w_row
+        via = via.reshape(-1, cells, slots)
+        block_data, block_rows = data[rows_b], rows[rows_b]
+        block_data[:, :, 1] = own.reshape(-1, cells, slots)
+        block_rows[:, :, 1] = own_rows.reshape(-1, cells, slots)
+        block_data[:, 1:, 0] = via[:, :-1] * wl[1:, None]
+        block_data[:, :1, 0] = via[:, :1] * wl[:1, None]
+        block_data[:, :-1, 2] = via[:, 1:] * wr[:-1, None]
+        block_data[:, -1:, 2] = via[:, -1:] * wr[-1:, None]
+        block_rows[:, 1:, 0], block_rows[:, :1, 0] = block_rows[:, :-1, 1], block_rows[:, :1, 1]
+        block_rows[:, :-1, 2], block_rows[:, -1:, 2] = block_rows[:, 1:, 1], block_rows[:, -1:, 1]
+    indptr = np.arange(pings * cells + 1, dtype=np.int64) * (3 * slots)
+    jac = sparse.csc_matrix(
+        (data.ravel(), rows.ravel(), indptr), shape=(pings * bins, pings * cells)
+    ).tocsr()
+    jac.sum_duplicates()
+    jac.eliminate_zeros()
+    return jac
+
+
+def _segment_evaluate(
+    image: np.ndarray,
+    weight: np.ndarray,
+    r: np.ndarray,
+    phi: np.ndarray,
+    z: np.ndarray,
+    geom: Geometry,
+    smooth: float,
+    edge: float,
+) -> Evaluation:
+    """:func:`evaluate` with ``geom.deposit == "segment"``."""
+    res = forward(r, phi, z, geom) - image
+    grad_r, grad_phi, grad_z = adjoint(2.0 * weight * res, r, phi, z, geom)
+    jac = jacobian_z(weight, r, phi, z, geom)
+    diag_z = 2.0 * np.asarray(jac.multiply(jac).sum(axis=0)).reshape(z.shape)
+    c = _segment_cells(z, geom)
+    curv = _padded(np.broadcast_to(2.0 * weight / geom.range_bin**2, res.shape), c)
+    a = np.zeros(z.size)
+    for s in range(c.points):
+        for j in range(int(c.reach[0])):
+            share = _segment_weight(c, s, slice(0, z.size), j)
+            a += share * share * curv[_segment_index(c, s, slice(0, z.size), j, geom.bins)]
+    a = a.reshape(z.shape) * (geom.dx / c.points) ** 2
+    rough, grad_rough, diag_rough = roughness(r, edge)
+    return Evaluation(
+        energy=float(np.sum(weight * res * res)) + smooth * rough,
+        grad_r=grad_r + smooth * grad_rough,
+        grad_phi=grad_phi,
+        grad_z=grad_z,
+        diag_r=a * (phi * c.q) ** 2 + smooth * diag_rough,
+        diag_phi=a * (r * c.q) ** 2,
+        diag_z=diag_z,
+    )

@@ -71,7 +71,7 @@ def build(
         reach = np.sqrt((x[-1] - geom.dx * f) ** 2 + alt[:, None] ** 2)
         centres = (np.arange(bins) + 0.5) * rb
         slant_weight = (centres[None, :] <= reach).astype(np.float64)
-        grid = Geometry(x, geom.dx * f, geom.dy * f, rb, bins, geom.subsamples)
+        grid = Geometry(x, geom.dx * f, geom.dy * f, rb, bins, geom.subsamples, geom.deposit)
         out.append(Level(_pool(image, f), weight, _pool(slant, f), slant_weight, alt, grid, f))
     return out[::-1]
 

@@ -257,3 +257,14 @@ def test_tensor_basis_is_the_kronecker_product_on_a_grid():
 
 def sparse_kron(a, b):
     return np.kron(a.toarray(), b.toarray())
+
+
+def test_freeing_the_reflectivity_widens_the_elevation_uncertainty():
+    """With log R in the Laplace approximation (shading can be either), Z's marginal spread is
+    at least its spread with R held: the marginal variance of a Gaussian is never below a
+    conditional one."""
+    problem, p, _ = _problem(3, shadows=False)
+    free = solve.elevation_std(problem, p, samples=64, reflectivity=True)
+    held = solve.elevation_std(problem, p, samples=64, reflectivity=False)
+    ratio = [np.median(free[k] / held[k]) for k in free]
+    assert min(ratio) > 1.05, ratio

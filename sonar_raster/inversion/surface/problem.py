@@ -407,11 +407,14 @@ def flat_start_knots(views: Sequence[View], grid: Grid, kz: tuple[int, int]) -> 
     b = np.concatenate(rhs)
     level = float(np.median(b))
     scale = math.sqrt(max(a.shape[0], 1) / max(ky * kx, 1))
-    d1 = diags([-1.0, 1.0], [0, 1], shape=(kx - 1, kx))
-    d2 = diags([1.0, -2.0, 1.0], [0, 1, 2], shape=(max(ky - 2, 1), ky))
-    across = 10.0 * scale * kron(identity(ky), d1)
-    along = 0.1 * scale * kron(d2, identity(kx))
-    system = vstack([a, across, along]).tocsr()
+    blocks = [a]
+    if kx >= 2:
+        d1 = diags([-1.0, 1.0], [0, 1], shape=(kx - 1, kx))
+        blocks.append(10.0 * scale * kron(identity(ky), d1))
+    if ky >= 3:
+        d2 = diags([1.0, -2.0, 1.0], [0, 1, 2], shape=(ky - 2, ky))
+        blocks.append(0.1 * scale * kron(d2, identity(kx)))
+    system = vstack(blocks).tocsr()
     target = np.concatenate([b - level, np.zeros(system.shape[0] - a.shape[0])])
     coef = lsqr(system, target, damp=1e-3, atol=1e-10, btol=1e-10)[0] + level
     return coef.reshape(kz)

@@ -14,7 +14,7 @@ import numpy as np
 from scipy import optimize, sparse
 
 from ...errors import SonarRasterError
-from ..model import Geometry, forward, jacobian_z, slope
+from ..model import Geometry, deposit_matrix, forward, jacobian_z
 from . import problem as prob
 from .layout import (
     Frame,
@@ -34,6 +34,11 @@ Z_KNOT_BINS = 4.0
 R_KNOT_BINS = 4.0
 #: Points per ground cell in the model (sonar_raster.inversion.model).
 SUBSAMPLES = 2
+#: How the model shares a point's return among the range bins (``Geometry.deposit``):
+#: "segment" spreads it over its slant-range interval and overlaps that with the bins' boxes,
+#: as the renderer bins; "tent" splits it between the two nearest bin centres.
+DEPOSIT = "tent"
+
 #: Largest number of looks the likelihood trusts (the model's own error on clean images).
 MAX_LOOKS = 30.0
 #: Gauss-Newton steps on the Z knots per level (each followed by L-BFGS on R and Φ); 0: plain
@@ -293,7 +298,7 @@ def _level(prepared, frame: Frame, grid: Grid, f: int) -> Problem:
             pooled = pool_image(image, f) / rb  # per metre of slant range
             bins = pooled.shape[1]
             x = ground_axis(h, rb, bins, rb)
-            geom = Geometry(x, rb, dy, rb, bins, SUBSAMPLES)
+            geom = Geometry(x, rb, dy, rb, bins, SUBSAMPLES, DEPOSIT)
             y_pts, x_pts = cell_points(frame, position, heading, side, x)
             ny, nx = frame.to_frame(position)
             centres = (np.arange(bins) + 0.5) * rb
@@ -435,36 +440,114 @@ def _results(
 
 
 def elevation_std(
-    problem: Problem, p: np.ndarray, samples: int = 32, seed: int = 0
+    problem: Problem,
+    p: np.ndarray,
+    samples: int = 32,
+    seed: int = 0,
+    reflectivity: bool = True,
 ) -> dict[tuple[int, str], np.ndarray]:
     """Standard deviation of Z per cell of each view (line, side), Laplace approximation.
 
-    The posterior of the Z knots, R and Φ held at the fit, is approximated by a Gaussian with
-    the Gauss-Newton (Fisher) precision ``H = Jᵀ W J + P``: ``J`` the exact Jacobian of the
-    model image wrt the knots (shadows held), ``W = L / μ²`` the Gamma likelihood's Fisher
-    weight per bin and ``P`` the Hessian of the quadratic priors on Z. Samples
+    The posterior of the Z and log R knots, Φ held at the fit, is approximated by a Gaussian
+    with the Gauss-Newton (Fisher) precision ``H = Jᵀ W J + P``: ``J`` the exact Jacobian of the
+    model image wrt both sets of knots (shadows held), ``W = L / μ²`` the Gamma likelihood's
+    Fisher weight per bin and ``P`` the Hessian of the priors (on Z the quadratic ones, on
+    log R its edge-preserving roughness at the fit and its gauge; ``reflectivity=False``
+    holds R too). R belongs in it because shading can be explained by either. Samples
     ``H⁻¹ (Jᵀ ε₁ + Σ Dᵀ ε₂)`` with ``ε`` standard normal have exactly that covariance; each
     costs one solve with the sparse LU factors of ``H``. A cell's standard deviation is that of
     its interpolated Z over the samples.
     """
-    from scipy.sparse.linalg import splu
-
     rng = np.random.default_rng(seed)
-    h, jacobians = _fisher_z(problem, p)
-    jac = sparse.vstack(jacobians, format="csr")
-    roots = _prior_roots(problem)
-    lu = splu(h, **SYMMETRIC_LU)
+    nz = problem.nz
+    nr = problem.nr if reflectivity else 0
+    _, jz = _fisher_z(problem, p)
+    blocks = [sparse.vstack(jz)]
+    if reflectivity:
+        blocks.append(sparse.vstack(_r_jacobians(problem, p)))
+    jac = sparse.hstack(blocks).tocsr()
+    pad = sparse.csr_matrix
+    roots = [sparse.hstack([d, pad((d.shape[0], nr))]).tocsr() for d in _prior_roots(problem)]
+    if reflectivity:
+        roots += [
+            sparse.hstack([pad((d.shape[0], nz)), d]).tocsr()
+            for d in _reflectivity_roots(problem, p)
+        ]
+    h = (jac.T @ jac).tocsc()
+    for root in roots:
+        h = h + (root.T @ root).tocsc()
+    solve_h = _symmetric_solver(h.tocsc(), nz)
     draws = []
     for _ in range(samples):
         rhs = jac.T @ rng.standard_normal(jac.shape[0])
         for root in roots:
             rhs = rhs + root.T @ rng.standard_normal(root.shape[0])
-        draws.append(lu.solve(rhs))
+        draws.append(solve_h(rhs)[:nz])
     knots = np.stack(draws, axis=1)  # (nz, samples)
     return {
         (v.line, v.side): np.std(np.asarray(v.bz @ knots), axis=1, ddof=1).reshape(v.shape)
         for v in problem.views
     }
+
+
+def _symmetric_solver(h: sparse.csc_matrix, nz: int) -> Callable[[np.ndarray], np.ndarray]:
+    """``b -> H⁻¹ b`` for the symmetric positive definite ``H``.
+
+    Z alone: its sparse LU. Z and log R together (their factors fill in beyond SuperLU's memory
+    at tens of thousands of knots): conjugate gradients preconditioned by the LU factors of the
+    two diagonal blocks, to a relative residual of 1e-8.
+    """
+    from scipy.sparse.linalg import LinearOperator, cg, splu
+
+    n = h.shape[0]
+    if n == nz:
+        return splu(h, **SYMMETRIC_LU).solve
+    blocks = [splu(h[:nz, :nz].tocsc(), **SYMMETRIC_LU), splu(h[nz:, nz:].tocsc(), **SYMMETRIC_LU)]
+
+    def precondition(v: np.ndarray) -> np.ndarray:
+        return np.concatenate([blocks[0].solve(v[:nz]), blocks[1].solve(v[nz:])])
+
+    pre = LinearOperator((n, n), matvec=precondition)
+
+    def solve(b: np.ndarray) -> np.ndarray:
+        x, _ = cg(h, b, M=pre, rtol=1e-8, maxiter=500)
+        return x
+
+    return solve
+
+
+def _r_jacobians(problem: Problem, p: np.ndarray) -> list[sparse.csr_matrix]:
+    """Per view, ``sqrt(W) ∂μ/∂(log R knots)`` at ``p`` (Z, Φ and shadows held)."""
+    out = []
+    for view in problem.views:
+        z, r, beam = problem.fields(p, view)
+        shade = soft_shadow(z, view.geom.x, view.tau)[0]
+        mu = forward(r * shade, beam.phi, z, view.geom) + view.floor
+        weight = np.where(view.mask, view.looks / (mu * mu), 0.0)
+        out.append((beam_jacobian(weight, r * shade, z, view.geom) @ sparse.diags(
+            beam.phi.ravel()) @ view.br).tocsr())
+    return out
+
+
+def _reflectivity_roots(problem: Problem, p: np.ndarray) -> list[sparse.csr_matrix]:
+    """Square roots of the Hessians of log R's edge-preserving roughness (at ``p``) and gauge."""
+    _, rc, _ = problem.split(p)
+    ky, kx = problem.kr
+    eps = prob.REFLECTIVITY_EDGE
+    roots = []
+    for axis in (0, 1):
+        n = (ky, kx)[axis]
+        if n < 2:
+            continue
+        d1 = sparse.diags([-1.0, 1.0], [0, 1], shape=(n - 1, n))
+        eye = sparse.identity((kx, ky)[axis])
+        diff = sparse.kron(d1, eye) if axis == 0 else sparse.kron(eye, d1)
+        d = diff @ rc.ravel()
+        curvature = problem.w_r * 2.0 * eps * eps * eps / (d * d + eps * eps) ** 1.5
+        roots.append((sparse.diags(np.sqrt(curvature)) @ diff).tocsr())
+    gauge = np.full((1, problem.nr), math.sqrt(2.0 * problem.w_gauge) / problem.nr)
+    roots.append(sparse.csr_matrix(gauge))
+    return roots
 
 
 def _prior_roots(problem: Problem) -> list[sparse.csr_matrix]:
@@ -528,34 +611,11 @@ def beam_jacobian(
 
     With ``values = R ∂Φ/∂Z`` it is the Jacobian wrt Z through the beam (Φ at each cell's own
     depression angle), a (pings·bins) × (pings·cells) matrix: each cell's return
-    ``Φ R q dx / range_bin`` is shared by its sub-points and split between the two nearest bins
-    as in :func:`..model.forward`.
+    ``Φ R q dx / range_bin`` shared among the bins as :func:`..model.forward` does.
     """
-    pings, cells = z.shape
-    width, n = geom.bins, geom.subsamples
-    x = geom.x[None, :]
-    zx = slope(z, 1, geom.dx)
-    q = np.maximum(x * zx - z, 0.0) / np.sqrt(x * x + z * z)
-    amp = values * q * geom.dx / geom.range_bin / n
-    col = np.arange(pings * cells).reshape(pings, cells)
-    base = np.arange(pings)[:, None] * width
-    rows, cols, vals = [], [], []
-    for s in range(n):
-        offset = ((s + 0.5) / n - 0.5) * geom.dx
-        zs = z + offset * zx
-        u = np.sqrt((x + offset) ** 2 + zs * zs) / geom.range_bin - 0.5
-        k0 = np.floor(u)
-        t = u - k0
-        for k, share in ((k0.astype(np.int64), 1.0 - t), (k0.astype(np.int64) + 1, t)):
-            inside = (k >= 0) & (k < width)
-            rows.append((base + k)[inside])
-            cols.append(col[inside])
-            vals.append((amp * share)[inside])
-    matrix = sparse.csr_matrix(
-        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-        shape=(pings * width, pings * cells),
-    )
-    return (sparse.diags(np.sqrt(weight).ravel()) @ matrix).tocsr()
+    deposit, q = deposit_matrix(z, geom)
+    amp = (values * q).ravel() * (geom.dx / geom.range_bin)
+    return (sparse.diags(np.sqrt(weight).ravel()) @ deposit @ sparse.diags(amp)).tocsr()
 
 
 def _gn_matvec(problem: Problem, lhs: sparse.csc_matrix, v: np.ndarray) -> np.ndarray:
