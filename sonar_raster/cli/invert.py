@@ -374,6 +374,14 @@ _PIXEL_BYTES = 64
 #: (2 x 153 600 samples, both sides, GeoTIFFs) 36.0 s, on 2 cores shared with three other
 #: engineers (load 4-5): 4.7e-5 to 1.8e-4 s per pixel; upper-middle.
 _PIXEL_SECONDS = 1e-4
+#: The same for ``--method surface`` (two levels, 8 Gauss-Newton steps, the uncertainty):
+#: tools/bench_bathymetry.py fits of 200 pings x 2 x 600 bins took 53-220 s one line and
+#: 261-352 s three lines at load 4-6, 150 s alone (2.2e-4 to 9e-4 s per pixel); upper-middle.
+_SURFACE_PIXEL_SECONDS = 7e-4
+#: Peak bytes per input pixel of the surface fit: 1.07 GB resident for one of those lines
+#: (240 000 pixels, 4.5 kB each: Jacobians of Z and log R, normal matrices, LU factors, the
+#: model's caches); with a margin.
+_SURFACE_PIXEL_BYTES = 6_000
 #: Bytes per sample of an XTF file (16-bit samples; headers make the count an upper bound).
 _XTF_SAMPLE_BYTES = 2
 
@@ -398,11 +406,12 @@ def check_cost(pixels: int, what: str, lower: str, args: argparse.Namespace) -> 
     """
     from .._progress import ANNOUNCE_S, Estimate, announce, check_job
 
+    surface = getattr(args, "method", "profiles") == "surface"
     estimate = Estimate(
         what,
         {"pixels": float(pixels)},
-        seconds=_PIXEL_SECONDS * pixels,
-        memory=float(_PIXEL_BYTES) * pixels,
+        seconds=(_SURFACE_PIXEL_SECONDS if surface else _PIXEL_SECONDS) * pixels,
+        memory=float(_SURFACE_PIXEL_BYTES if surface else _PIXEL_BYTES) * pixels,
     )
     check_job(estimate, lower, force=args.force)
     if not args.quiet and estimate.seconds >= ANNOUNCE_S:

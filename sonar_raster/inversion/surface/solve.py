@@ -452,7 +452,7 @@ def elevation_std(
     with the Gauss-Newton (Fisher) precision ``H = Jᵀ W J + P``: ``J`` the exact Jacobian of the
     model image wrt both sets of knots (shadows held), ``W = L / μ²`` the Gamma likelihood's
     Fisher weight per bin and ``P`` the Hessian of the priors (on Z the quadratic ones, on
-    log R its edge-preserving roughness at the fit and its gauge; ``reflectivity=False``
+    log R its edge-preserving roughness at the fit; ``reflectivity=False``
     holds R too). R belongs in it because shading can be explained by either. Samples
     ``H⁻¹ (Jᵀ ε₁ + Σ Dᵀ ε₂)`` with ``ε`` standard normal have exactly that covariance; each
     costs one solve with the sparse LU factors of ``H``. A cell's standard deviation is that of
@@ -530,7 +530,7 @@ def _r_jacobians(problem: Problem, p: np.ndarray) -> list[sparse.csr_matrix]:
 
 
 def _reflectivity_roots(problem: Problem, p: np.ndarray) -> list[sparse.csr_matrix]:
-    """Square roots of the Hessians of log R's edge-preserving roughness (at ``p``) and gauge."""
+    """Square roots of the Hessian of log R's edge-preserving roughness at ``p``."""
     _, rc, _ = problem.split(p)
     ky, kx = problem.kr
     eps = prob.REFLECTIVITY_EDGE
@@ -545,8 +545,8 @@ def _reflectivity_roots(problem: Problem, p: np.ndarray) -> list[sparse.csr_matr
         d = diff @ rc.ravel()
         curvature = problem.w_r * 2.0 * eps * eps * eps / (d * d + eps * eps) ** 1.5
         roots.append((sparse.diags(np.sqrt(curvature)) @ diff).tocsr())
-    gauge = np.full((1, problem.nr), math.sqrt(2.0 * problem.w_gauge) / problem.nr)
-    roots.append(sparse.csr_matrix(gauge))
+    # no root for the gauge (mean log R): with Φ held the data fix R's level, and its rank-one
+    # Hessian would make H dense
     return roots
 
 
