@@ -495,7 +495,8 @@ def _symmetric_solver(h: sparse.csc_matrix, nz: int) -> Callable[[np.ndarray], n
 
     Z alone: its sparse LU. Z and log R together (their factors fill in beyond SuperLU's memory
     at tens of thousands of knots): conjugate gradients preconditioned by the LU factors of the
-    two diagonal blocks, to a relative residual of 1e-8.
+    two diagonal blocks, to a relative residual of 1e-3 (a sample needs no more: 32 of them
+    estimate a spread to 12 %).
     """
     from scipy.sparse.linalg import LinearOperator, cg, splu
 
@@ -510,7 +511,7 @@ def _symmetric_solver(h: sparse.csc_matrix, nz: int) -> Callable[[np.ndarray], n
     pre = LinearOperator((n, n), matvec=precondition)
 
     def solve(b: np.ndarray) -> np.ndarray:
-        x, _ = cg(h, b, M=pre, rtol=1e-8, maxiter=500)
+        x, _ = cg(h, b, M=pre, rtol=1e-3, maxiter=200)
         return x
 
     return solve
