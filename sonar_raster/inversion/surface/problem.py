@@ -96,8 +96,10 @@ class Problem:
         self.views = list(views)
         self.grid = grid
         self.flat = flat
-        self.kz: tuple[int, int] = tuple(len(k) for k in grid.knots("z"))  # type: ignore[assignment]
-        self.kr = tuple(len(k) for k in grid.knots("r"))
+        ky, kx = (len(k) for k in grid.knots("z"))
+        self.kz = (ky, kx)
+        ry, rx = (len(k) for k in grid.knots("r"))
+        self.kr = (ry, rx)
         self.nz = self.kz[0] * self.kz[1]
         self.nr = self.kr[0] * self.kr[1]
         self.size = self.nz + self.nr + grid.nodes * len(grid.sides)

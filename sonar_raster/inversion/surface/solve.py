@@ -326,8 +326,8 @@ def _level(prepared, frame: Frame, grid: Grid, f: int) -> Problem:
                     points=(y_pts, x_pts),
                 )
             )
-    kz = tuple(len(k) for k in grid.knots("z"))
-    return Problem(views, grid, flat_start_knots(views, grid, kz))  # type: ignore[arg-type]
+    ky, kx = (len(k) for k in grid.knots("z"))
+    return Problem(views, grid, flat_start_knots(views, grid, (ky, kx)))
 
 
 def _start(problem: Problem) -> np.ndarray:
