@@ -612,10 +612,19 @@ def jacobian_z(
     for block in _blocks(pings, cells):
         b = block[0]
         _jacobian_block(c, geom, block, (r[b], phi[b], root), (data[b], rows[b]))
-    indptr = np.arange(pings * cells + 1, dtype=index_type) * (6 * n)
-    jac = sparse.csc_matrix(
-        (data.ravel(), rows.ravel(), indptr), shape=(pings * bins, pings * cells)
-    ).tocsr()
+    return _columns_to_csr(data, rows, 6 * n, (pings * bins, pings * cells))
+
+
+def _columns_to_csr(
+    data: np.ndarray, rows: np.ndarray, per_column: int, shape: tuple[int, int]
+) -> sparse.csr_matrix:
+    """A Jacobian as CSR from ``per_column`` fixed slots per cell column.
+
+    ``rows`` and ``data`` hold each slot's row index and value, column-major; duplicates are
+    summed and zeros dropped.
+    """
+    indptr = np.arange(shape[1] + 1, dtype=rows.dtype) * per_column
+    jac = sparse.csc_matrix((data.ravel(), rows.ravel(), indptr), shape=shape).tocsr()
     jac.sum_duplicates()
     jac.eliminate_zeros()
     return jac
@@ -1163,13 +1172,7 @@ def _segment_jacobian(
         block_data[:, -1:, 2] = via[:, -1:] * wr[-1:, None]
         block_rows[:, 1:, 0], block_rows[:, :1, 0] = block_rows[:, :-1, 1], block_rows[:, :1, 1]
         block_rows[:, :-1, 2], block_rows[:, -1:, 2] = block_rows[:, 1:, 1], block_rows[:, -1:, 1]
-    indptr = np.arange(pings * cells + 1, dtype=np.int64) * (3 * slots)
-    jac = sparse.csc_matrix(
-        (data.ravel(), rows.ravel(), indptr), shape=(pings * bins, pings * cells)
-    ).tocsr()
-    jac.sum_duplicates()
-    jac.eliminate_zeros()
-    return jac
+    return _columns_to_csr(data, rows, 3 * slots, (pings * bins, pings * cells))
 
 
 def _segment_evaluate(

@@ -112,8 +112,6 @@ def _inversion(
         np.where(known, v[name], np.nan) for v in (fit.reflectivity, fit.beam, fit.elevation)
     )
     depression, gain = fit.profile[name]
-    steps = np.linalg.norm(np.diff(np.asarray(line.position, float), axis=0), axis=1)
-    spacing = float(np.median(steps)) if steps.size else 1.0
     settings = {
         "method": "surface",
         "levels": levels,
@@ -131,7 +129,7 @@ def _inversion(
         elev,
         BeamProfile(depression, gain),
         energies=[[e] for e in fit.energies],
-        ping_spacing=spacing,
+        ping_spacing=line.spacing,
         runs=[
             {"evaluations": n, "energy": float(e)}
             for n, e in zip(fit.evaluations, fit.energies, strict=True)

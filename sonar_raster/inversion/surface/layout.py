@@ -154,6 +154,12 @@ class Line:
         """Number of pings."""
         return int(np.asarray(self.position).shape[0])
 
+    @property
+    def spacing(self) -> float:
+        """Median distance between consecutive pings, metres (1 for a single ping)."""
+        steps = np.linalg.norm(np.diff(np.asarray(self.position, float), axis=0), axis=1)
+        return float(np.median(steps)) if steps.size else 1.0
+
 
 @dataclass(frozen=True)
 class Frame:

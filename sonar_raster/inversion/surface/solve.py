@@ -194,7 +194,7 @@ def _setup(lines, looks, z_knot, r_knot, levels):
         prepared.append((line, images, alt, height, look))
     frame = Frame.of(lines)
     first = lines[0]
-    spacing = _ping_spacing(first)
+    spacing = first.spacing
     zs = float(z_knot or max(Z_KNOT_BINS * first.range_bin, spacing))
     rs = float(r_knot or max(R_KNOT_BINS * first.range_bin, spacing))
     extent, angles = _extent(prepared, frame)
@@ -255,11 +255,6 @@ def fit_surface(
     return fit_lines([line], **options)[0]
 
 
-def _ping_spacing(line: Line) -> float:
-    steps = np.linalg.norm(np.diff(np.asarray(line.position, float), axis=0), axis=1)
-    return float(np.median(steps)) if steps.size else 1.0
-
-
 def _extent(prepared, frame: Frame) -> tuple[tuple[float, float, float, float], tuple]:
     """The frame box every cell of every line falls in, and the Φ node angles."""
     from ..ground import ground_axis
@@ -276,7 +271,7 @@ def _extent(prepared, frame: Frame) -> tuple[tuple[float, float, float, float], 
         lows.append(math.atan2(float(np.min(alt)), reach))
         highs.append(math.atan2(float(np.max(alt)), 0.5 * line.range_bin))
     y, x = np.concatenate(ys), np.concatenate(xs)
-    spacing = _ping_spacing(prepared[0][0])
+    spacing = prepared[0][0].spacing
     y0, y1 = float(y.min()), float(max(y.max(), y.min() + spacing))
     lo, hi = min(lows), max(highs)
     nodes = max(4, int(math.degrees(hi - lo) * BEAM_NODES_PER_DEGREE) + 2)
@@ -293,7 +288,7 @@ def _level(prepared, frame: Frame, grid: Grid, f: int) -> Problem:
         h = pool(alt, f)
         position = pool(np.asarray(line.position, float), f)
         heading = pool_heading(np.asarray(line.heading, float), f)
-        dy = _ping_spacing(line) * f
+        dy = line.spacing * f
         for side, image in images.items():
             pooled = pool_image(image, f) / rb  # per metre of slant range
             bins = pooled.shape[1]
@@ -461,10 +456,8 @@ def elevation_std(
     rng = np.random.default_rng(seed)
     nz = problem.nz
     nr = problem.nr if reflectivity else 0
-    _, jz = _fisher_z(problem, p)
-    blocks = [sparse.vstack(jz)]
-    if reflectivity:
-        blocks.append(sparse.vstack(_r_jacobians(problem, p)))
+    jz, jr = _jacobians(problem, p, reflectivity)
+    blocks = [sparse.vstack(jz)] + ([sparse.vstack(jr)] if reflectivity else [])
     jac = sparse.hstack(blocks).tocsr()
     pad = sparse.csr_matrix
     roots = [sparse.hstack([d, pad((d.shape[0], nr))]).tocsr() for d in _prior_roots(problem)]
@@ -517,19 +510,6 @@ def _symmetric_solver(h: sparse.csc_matrix, nz: int) -> Callable[[np.ndarray], n
     return solve
 
 
-def _r_jacobians(problem: Problem, p: np.ndarray) -> list[sparse.csr_matrix]:
-    """Per view, ``sqrt(W) ∂μ/∂(log R knots)`` at ``p`` (Z, Φ and shadows held)."""
-    out = []
-    for view in problem.views:
-        z, r, beam = problem.fields(p, view)
-        shade = soft_shadow(z, view.geom.x, view.tau)[0]
-        mu = forward(r * shade, beam.phi, z, view.geom) + view.floor
-        weight = np.where(view.mask, view.looks / (mu * mu), 0.0)
-        out.append((beam_jacobian(weight, r * shade, z, view.geom) @ sparse.diags(
-            beam.phi.ravel()) @ view.br).tocsr())
-    return out
-
-
 def _reflectivity_roots(problem: Problem, p: np.ndarray) -> list[sparse.csr_matrix]:
     """Square roots of the Hessian of log R's edge-preserving roughness at ``p``."""
     _, rc, _ = problem.split(p)
@@ -575,44 +555,54 @@ def _prior_roots(problem: Problem) -> list[sparse.csr_matrix]:
     return roots
 
 
-def _fisher_z(problem: Problem, p: np.ndarray) -> tuple[sparse.csc_matrix, list]:
-    """Gauss-Newton (Fisher) matrix of the objective wrt the Z knots, and each view's Jacobian.
+def _jacobians(
+    problem: Problem, p: np.ndarray, reflectivity: bool = False
+) -> tuple[list[sparse.csr_matrix], list[sparse.csr_matrix]]:
+    """Per view, ``sqrt(W) ∂μ/∂(Z knots)`` and (with ``reflectivity``) ``∂μ/∂(log R knots)``.
 
-    R, the Φ nodes and the shadows are held.
-
-    ``Σ_views (J B)ᵀ (J B)`` with ``J`` the model's Jacobian wrt per-cell Z (the beam's change
-    of depression angle included) weighted by ``sqrt(L / μ²)`` and ``B`` the view's Z basis,
-    plus the Hessians of the quadratic priors on Z; the line-profile prior is applied
-    separately (:func:`.problem.line_profile`).
+    ``W = L / μ²`` is the Gamma likelihood's Fisher weight per bin; the Z Jacobian includes the
+    beam's change of depression angle; Φ nodes and shadows are held.
     """
-    jacobians = []
-    h = None
+    jz, jr = [], []
     for view in problem.views:
         z, r, beam = problem.fields(p, view)
         shade = soft_shadow(z, view.geom.x, view.tau)[0]
         mu = forward(r * shade, beam.phi, z, view.geom) + view.floor
         weight = np.where(view.mask, view.looks / (mu * mu), 0.0)
-        per_cell = jacobian_z(weight, r * shade, beam.phi, z, view.geom) + beam_jacobian(
+        per_cell = jacobian_z(weight, r * shade, beam.phi, z, view.geom) + deposit_jacobian(
             weight, r * shade * beam.dz, z, view.geom
         )
-        jac = (per_cell @ view.bz).tocsr()
-        jacobians.append(jac)
+        jz.append((per_cell @ view.bz).tocsr())
+        if reflectivity:
+            values = r * shade * beam.phi  # ∂μ/∂log R of a cell: its whole return
+            jr.append((deposit_jacobian(weight, values, z, view.geom) @ view.br).tocsr())
+    return jz, jr
+
+
+def _fisher_z(problem: Problem, p: np.ndarray) -> sparse.csc_matrix:
+    """Gauss-Newton (Fisher) matrix of the objective wrt the Z knots.
+
+    ``Σ_views (J B)ᵀ (J B)`` (:func:`_jacobians`) plus the Hessians of the quadratic priors on
+    Z; the line-profile prior is applied separately (:func:`.problem.line_profile`).
+    """
+    h = None
+    for jac in _jacobians(problem, p)[0]:
         block = (jac.T @ jac).tocsc()
         h = block if h is None else h + block
     assert h is not None
     for root in _prior_roots(problem):
         h = h + (root.T @ root).tocsc()
-    return h.tocsc(), jacobians
+    return h.tocsc()
 
 
-def beam_jacobian(
+def deposit_jacobian(
     weight: np.ndarray, values: np.ndarray, z: np.ndarray, geom: Geometry
 ) -> sparse.csr_matrix:
-    """``sqrt(w) ∂μ/∂Φ diag(values)``: the model's Jacobian wrt per-cell Φ scaled per cell.
+    """``sqrt(w) D diag(values q dx / range_bin)``, (pings·bins) × (pings·cells).
 
-    With ``values = R ∂Φ/∂Z`` it is the Jacobian wrt Z through the beam (Φ at each cell's own
-    depression angle), a (pings·bins) × (pings·cells) matrix: each cell's return
-    ``Φ R q dx / range_bin`` shared among the bins as :func:`..model.forward` does.
+    ``D`` is the model's deposit (:func:`..model.deposit_matrix`), so this is the Jacobian of
+    the image wrt any per-cell factor ``f`` of the return ``Φ R q dx / range_bin`` with
+    ``values = ∂(Φ R)/∂f``: ``R ∂Φ/∂Z`` for Z through the beam, ``Φ R`` for log R.
     """
     deposit, q = deposit_matrix(z, geom)
     amp = (values * q).ravel() * (geom.dx / geom.range_bin)
@@ -641,7 +631,7 @@ def _gauss_newton(problem: Problem, p: np.ndarray, steps: int) -> tuple:
     value, grad = problem(p)
     count, damping = 1, 1e-3
     for _ in range(int(steps)):
-        h, _ = _fisher_z(problem, p)
+        h = _fisher_z(problem, p)
         diag = h.diagonal()
         lhs = (h + sparse.diags(damping * diag + 1e-12 * diag.mean())).tocsc()
         lu = splu(lhs, **SYMMETRIC_LU)
