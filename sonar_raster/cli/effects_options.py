@@ -26,6 +26,8 @@ _FIELDS = {
     "k_shape": "k_shape",
     "speckle_looks": "speckle_looks",
     "range_resolution_m": "range_resolution",
+    "downsample": "downsample",
+    "sample_spacing_m": "sample_spacing",
     "spreading": "spreading",
     "absorption": "absorption",
     "noise_db": "noise",
@@ -43,6 +45,13 @@ def _number(text: str) -> float:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
     if not math.isfinite(value):
         raise argparse.ArgumentTypeError(f"must be finite, got {text}")
+    return value
+
+
+def _positive(text: str) -> float:
+    value = _number(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be a length > 0 in metres, got {text}")
     return value
 
 
@@ -78,6 +87,18 @@ def add_effect_options(parser: argparse.ArgumentParser) -> None:
         help="looks per sample (>= 1): speckle of L averaged looks, contrast 1/sqrt(L)",
     )
     add("--range-resolution", type=_number, metavar="M", help="speckle range cell (default 1 bin)")
+    add(
+        "--downsample",
+        choices=("off", "max", "mean"),
+        help="recorder keeps the max or mean intensity of its sub-samples per bin (needs "
+        "--sample-spacing unless the sensor sets it)",
+    )
+    add(
+        "--sample-spacing",
+        type=_positive,
+        metavar="M",
+        help="recorder sample spacing before --downsample, m of slant range",
+    )
     add("--spreading", action="store_true", default=None, help="two-way spreading, 1/r^4")
     add("--absorption", action="store_true", default=None, help="Francois-Garrison absorption")
     add("--noise", type=_number, metavar="DB", help="receiver noise level, dB in image units")
@@ -249,4 +270,20 @@ def effects_from_args(args: argparse.Namespace, scene_effects: Any, *, default: 
         else:  # a CSV file, relative to the working folder
             changes.update(tvg="curve", tvg_curve=args.tvg)
     effects = Effects.from_table(changes, where="command line", defaults=base)
+    _check_downsample(args, effects)
     return effects if effects.stages else None
+
+
+def _check_downsample(args: argparse.Namespace, effects: Any) -> None:
+    """--downsample and --sample-spacing only act together; one without the other is an error."""
+    from ..errors import SonarRasterError
+
+    if args.downsample not in (None, "off") and effects.sample_spacing_m is None:
+        raise SonarRasterError(
+            f"--downsample {args.downsample} needs the recorder's sample spacing: "
+            "add --sample-spacing M (metres)"
+        )
+    if args.sample_spacing is not None and effects.downsample == "off":
+        raise SonarRasterError(
+            "--sample-spacing does nothing while downsampling is off: add --downsample max or mean"
+        )

@@ -15,12 +15,25 @@ Sources
   169-181 (1998); D. R. Jackson and M. D. Richardson, "High-Frequency Seafloor Acoustics",
   Springer (2007), ch. 13), evaluated at backscatter (incident = scattered grazing angle,
   azimuth π): ``σ_r = (σ_kr^-2 + σ_pr^-2)^(-1/2)``.
-- The sediment-volume term is driven by the TR 9407 volume parameter σ₂, the ratio of the
-  sediment volume-scattering coefficient to its attenuation coefficient (dB/m). Its formula is
-  derived here by radiative transfer for a fluid sediment (power transmission ``1 - |V|²``
-  down and up, radiance ∝ n², round-trip decay ``exp(-4 k Im P z)``):
-  ``σ_v = (20 log10 e / 4) δ σ₂ |1 + V|⁴ / (ν ρ² Im P)``. The printed TR 9407 expression
-  could not be consulted when this was written (see docs/notes/2026-11-24-backscatter.md).
+- The sediment-volume term is TR 9407 section IV.C's flat-interface volume cross section,
+  Eq. (66): ``σ_v = 5 δ σ₂ |1 - V²|² sin²θ / (ν ln10 |P|² Im P)``, with σ₂ the ratio of the
+  sediment volume-scattering coefficient to its attenuation coefficient (dB/m). The module
+  evaluates the equal form ``(5 / ln10) δ σ₂ |1 + V|⁴ / (ν ρ² Im P)`` (substitute
+  ``1 + V = 2ρ sinθ / (ρ sinθ + P)`` and ``1 - V = 2P / (ρ sinθ + P)``), first derived here
+  by radiative transfer, then checked against the printed equation as transcribed, with its
+  equation numbers, in the public ``uacpy`` port of the report (github.com/ErVuL/uacpy,
+  ``uacpy/sonar/bottom_scattering.py``, Eqs. 65-66), and against the report's Table 3
+  (pp. IV-23..25; silt, Mz 6, 30 kHz, σ₂ = 0.001 and 0.0003, as transcribed in uacpy's
+  tests): the volume term those two columns imply agrees with this one to 0.1 dB from 5° to
+  80° grazing (``tests/scenes/test_backscatter.py``). The report itself (DTIC ADB199453) was
+  not readable here.
+- Not implemented: TR 9407 Eq. (65) multiplies Eq. (66) by the shadowing function S(θ)
+  (Eqs. 43-45) and averages it over the large-scale bottom slope (three-point Gauss-Hermite,
+  Eqs. 46-49), as it does the roughness term. Like the roughness term above, the volume term
+  here is the unaveraged one; the difference is under 0.1 dB above 5° for silt at 30 kHz
+  (Table 3 is 4.1 dB above this model at 1°), but grows with the rms slope, i.e. with
+  frequency and roughness: for medium sand at 5° it is +1.6 dB in S_b at 30 kHz, +4.7 dB at
+  600 kHz.
 
 Notation: grazing angle θ (radians, from the mean seabed plane), water wavenumber k,
 ``κ = (1 + iδ)/ν``, ``P(θ) = sqrt(κ² - cos²θ)`` (Im P ≥ 0), the fluid reflection coefficient
@@ -228,7 +241,11 @@ def roughness_cross_section(
 
 
 def volume_cross_section(p: SedimentParameters, grazing: np.ndarray) -> np.ndarray:
-    """Sediment-volume backscattering cross section (linear), driven by σ₂ (see module doc).
+    """Sediment-volume backscattering cross section (linear): TR 9407 Eq. (66), see module doc.
+
+    ``σ_v = 5 δ σ₂ |1 - V²|² sin²θ / (ν ln10 |P|² Im P)``, evaluated in the equivalent form
+    ``(5 / ln10) δ σ₂ |1 + V|⁴ / (ν ρ² Im P)``; independent of frequency. Without the
+    slope averaging and shadowing of Eq. (65).
 
     Parameters
     ----------
@@ -244,9 +261,9 @@ def volume_cross_section(p: SedimentParameters, grazing: np.ndarray) -> np.ndarr
     """
     t = np.asarray(grazing, dtype=np.float64)
     v, big_p = _reflection(p, np.sin(t), np.cos(t))
-    # σ_v2 = σ₂ α_dB with α_dB = 20 log10(e) k δ / ν; depth integral 1 / (4 k Im P).
-    db_per_neper = 20.0 * math.log10(math.e)
-    num = db_per_neper / 4.0 * p.delta * p.sigma2 * np.abs(1.0 + v) ** 4
+    # Radiative transfer: σ_v2 = σ₂ α_dB with α_dB = 20 log10(e) k δ / ν, depth integral
+    # 1 / (4 k Im P), power transmission |1 + V|⁴ / ρ² down and up; 20 log10(e) / 4 = 5 / ln10.
+    num = 5.0 / math.log(10.0) * p.delta * p.sigma2 * np.abs(1.0 + v) ** 4
     return num / (p.nu * p.rho**2 * big_p.imag)
 
 

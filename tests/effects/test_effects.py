@@ -634,3 +634,43 @@ def test_from_table_rejects_bad_values_with_one_clear_message(tmp_path, table, n
 def test_ragged_curve_given_directly_is_a_clear_error():
     with pytest.raises(SonarRasterError, match="TVG curve"):
         Effects(tvg="curve", tvg_curve=((0.0, 1.0), (2.0,)))  # type: ignore[arg-type]
+
+
+def test_cli_downsample_options_reach_the_effects(tmp_path, capsys):
+    from sonar_raster.cli.app import _parser, main
+    from sonar_raster.cli.effects_options import effects_from_args
+
+    def parse(*extra):
+        return _parser().parse_args(["render", "x.toml", "-o", "o.png", *extra])
+
+    opts = ("--speckle", "exponential", "--downsample", "max", "--sample-spacing", "0.01")
+    fx = effects_from_args(parse("--ideal", *opts), None)
+    assert fx.downsample == "max" and fx.sample_spacing_m == 0.01
+    sensor = ("--sensor", "marine-sonic-600-max")  # sets max and its spacing
+    spacing = effects_from_args(parse(*sensor), None).sample_spacing_m
+    fx = effects_from_args(parse(*sensor, "--downsample", "mean"), None)  # the method alone
+    assert fx.downsample == "mean" and fx.sample_spacing_m == spacing is not None
+    assert effects_from_args(parse(*sensor, "--downsample", "off"), None).downsample == "off"
+    fx = effects_from_args(parse(*sensor, "--sample-spacing", "0.005"), None)
+    assert fx.downsample == "max" and fx.sample_spacing_m == 0.005
+
+    out = str(tmp_path / "bad.exr")
+    base = ["render", "flat_calibration", "--pings", "4", "-q", "-o", out]
+    for bad, fix in (
+        (["--sample-spacing", "0"], "must be a length > 0 in metres"),
+        (["--sample-spacing", "-0.01"], "must be a length > 0 in metres"),
+        (["--downsample", "min"], "choose from"),
+    ):
+        with pytest.raises(SystemExit) as exit_:
+            main([*base, *bad])
+        err = capsys.readouterr().err
+        assert exit_.value.code == 2 and err.count("\n") == 1
+        assert bad[0] in err and fix in err
+    for bad, fix in (
+        (["--ideal", "--speckle", "exponential", "--downsample", "max"], "add --sample-spacing"),
+        (["--ideal", "--sample-spacing", "0.01"], "add --downsample max or mean"),
+    ):
+        assert main([*base, *bad]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and fix in err
+    assert not (tmp_path / "bad.exr").exists()
