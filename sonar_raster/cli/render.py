@@ -381,6 +381,7 @@ def run(args: argparse.Namespace) -> int:
         for line in placement_lines(setup):
             print(line)
     _check_in_range(setup)
+    effects_from_args(args, setup.effects)  # bad effect options fail before the render, not after
     _check_size(args, setup, _streamed(args, setup), outputs)
     if _streamed(args, setup):
         return _render_survey(args, setup, outputs)

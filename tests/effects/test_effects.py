@@ -674,3 +674,23 @@ def test_cli_downsample_options_reach_the_effects(tmp_path, capsys):
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and fix in err
     assert not (tmp_path / "bad.exr").exists()
+
+
+def test_bad_effect_options_fail_before_any_render(tmp_path, capsys, monkeypatch):
+    """An effect option that cannot work is refused before the (possibly long) render."""
+    from sonar_raster.cli import render as render_cli
+    from sonar_raster.cli.app import main
+
+    def no_render(*_args, **_kwargs):
+        raise AssertionError("rendered before checking the effect options")
+
+    monkeypatch.setattr(render_cli, "_render_image", no_render)
+    out = tmp_path / "bad.exr"
+    for model in ("raster", "coherent"):
+        code = main(
+            ["render", "flat_calibration", "--pings", "4", "-q", "-o", str(out), "--model", model]
+            + ["--ideal", "--sample-spacing", "0.01"]
+        )
+        err = capsys.readouterr().err
+        assert code == 2 and err.count("\n") == 1 and "add --downsample" in err, (model, err)
+    assert not out.exists()
