@@ -189,6 +189,44 @@ def test_speckled_sand_waves_beat_a_flat_seabed_because_pings_share_the_surface(
     assert np.mean(apart) > np.mean(shared) + 0.15
 
 
+@functools.cache
+def _flat_render(alt: float):
+    """Both sides of 60 pings over a flat, clean seabed at altitude ``alt``."""
+    from sonar_raster.rendering.gl.raster import RasterRenderer
+    from sonar_raster.scene import build_scene
+    from sonar_raster.scenes.seabed import from_grid
+    from sonar_raster.sonar import BeamPattern, Sonar
+    from sonar_raster.trajectory import Trajectory
+
+    sonar = Sonar(
+        max_range=14.0,
+        range_bin=0.05,
+        beam=BeamPattern.gaussian(60.0),
+        tilt=math.radians(20.0),
+        sides=("port", "starboard"),
+    )
+    track = Trajectory.straight((0.0, 0.0, alt), 0.0, 0.1, 60)
+    field = from_grid(np.zeros((141, 641)), 0.05, 0.05, x0=-16, y0=-0.5)
+    image = RasterRenderer().render(build_scene([field.mesh(0.5)]), sonar, track)
+    return {k: v.astype(float) for k, v in image.sides.items()}
+
+
+@pytest.mark.parametrize(
+    ("alt", "mean_bound", "rms_bound"), [(6.0, 0.025, 0.03), (6.0125, 0.005, 0.008)]
+)
+def test_a_flat_seabed_comes_out_level(alt, mean_bound, rms_bound):
+    """The model shares each return between the two nearest bin centres (a tent) where the
+    renderer bins by boxes; compared with the image blurred by the same one-bin box, a flat
+    seabed comes out at its level. Measured: first return on a bin edge -2.0 cm (-3.0 cm
+    without the blur), a quarter bin in -0.1 cm, rms 0.45 cm (1.15 cm without)."""
+    sides = _flat_render(alt)
+    fit = surface.fit_surface(sides, 0.05, ping_spacing=0.1, uncertainty=False)
+    keep = (fit.x > 0.5) & (fit.x < fit.x[-1] - 1.5)
+    error = np.concatenate([fit.elevation[s][:, keep] + alt for s in fit.elevation])
+    assert abs(float(np.mean(error))) < mean_bound
+    assert float(np.sqrt(np.mean(error**2))) < rms_bound
+
+
 def test_cli_surface_method_writes_both_sides_with_their_std(tmp_path):
     from sonar_raster.cli.app import main
 

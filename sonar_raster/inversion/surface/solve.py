@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 from functools import partial
 
 import numpy as np
-from scipy import optimize, sparse
+from scipy import ndimage, optimize, sparse
 
 from ...errors import SonarRasterError
 from ..model import Geometry, deposit_matrix, forward, jacobian_z
@@ -38,6 +38,9 @@ SUBSAMPLES = 2
 #: "segment" spreads it over its slant-range interval and overlaps that with the bins' boxes,
 #: as the renderer bins; "tent" splits it between the two nearest bin centres.
 DEPOSIT = "tent"
+#: A one-bin box in range sampled on the bins: what the tent deposit adds to the renderer's
+#: binning.
+TENT_BLUR = (0.25, 0.5, 0.25)
 
 #: Largest number of looks the likelihood trusts (the model's own error on clean images).
 MAX_LOOKS = 30.0
@@ -291,6 +294,13 @@ def _level(prepared, frame: Frame, grid: Grid, f: int) -> Problem:
         dy = line.spacing * f
         for side, image in images.items():
             pooled = pool_image(image, f) / rb  # per metre of slant range
+            if DEPOSIT == "tent":
+                # the tent shares each return between two bins where the image's bins are
+                # boxes: in expectation the model is the image blurred by a one-bin box in
+                # range, so it is compared with the image blurred likewise (unblurred, the fit
+                # moves a flat seabed deeper to keep the tent's spill out of the water column
+                # before the first return)
+                pooled = ndimage.convolve1d(pooled, TENT_BLUR, axis=1, mode="nearest")
             bins = pooled.shape[1]
             x = ground_axis(h, rb, bins, rb)
             geom = Geometry(x, rb, dy, rb, bins, SUBSAMPLES, DEPOSIT)
