@@ -381,7 +381,7 @@ def run(args: argparse.Namespace) -> int:
         for line in placement_lines(setup):
             print(line)
     _check_in_range(setup)
-    effects_from_args(args, setup.effects)  # bad effect options fail before the render, not after
+    effects = effects_from_args(args, setup.effects)  # bad options fail before the render
     _check_size(args, setup, _streamed(args, setup), outputs)
     if _streamed(args, setup):
         return _render_survey(args, setup, outputs)
@@ -390,7 +390,6 @@ def run(args: argparse.Namespace) -> int:
         {"scene": setup.source, "altitude_m": setup.altitude, "pings": setup.trajectory.n_pings}
     )
     image.metadata.update(setup.notes)
-    effects = effects_from_args(args, setup.effects)
     if effects is not None:  # no effects: the renderer's image is written as is
         from ..effects.chain import apply_effects
 
