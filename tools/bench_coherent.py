@@ -7,7 +7,9 @@ is rendered, in one process and on the same job (same scatterers, spacings, seed
                           loaded under another module name, with ``visibility="rays"``: one
                           embree ray per scatterer, the path issue 18 measured as today's;
 * ``ref: GL range maps``  the same committed package with ``visibility="depth"``;
-* ``new``                 this working tree's package (defaults).
+* ``numpy engine``        this working tree's package with ``engine="numpy"`` (array passes);
+* ``new``                 this working tree's package (defaults: the compiled engine, warmed
+                          up first so its one-off compilation is not timed).
 
 ``scatterers/s`` is ``n_scatterers`` (scatterers generated in reach of a ping block) over
 wall seconds; ``new ×`` is a path's seconds over the new path's (its speed-up), ``cpu ×`` the
@@ -21,7 +23,8 @@ Cases: ``barrel`` (``barrel.wrl``, the default seabed around a bare model, ``--p
 λ/4 on the barrel, 4λ on the seabed) and ``seabed`` (``rough_plain`` of
 ``tools/bench_accuracy.py``: a 100 kHz sonar over a rough grid seabed, 64 pings, λ/2).
 
-Usage: ``python tools/bench_coherent.py [--cases barrel,seabed] [--pings 20] [--ref HEAD]``.
+Usage: ``python tools/bench_coherent.py [--cases barrel,seabed] [--pings 20] [--ref HEAD]``
+(``--ref 0683d49``: the package before the compiled engine).
 """
 
 from __future__ import annotations
@@ -103,8 +106,12 @@ def run_case(label: str, job: tuple, options: dict, old: Any, repeat: int) -> li
     paths = (
         ("today: embree rays", old.render_coherent, {"visibility": "rays"}),
         ("ref: GL range maps", old.render_coherent, {"visibility": "depth"}),
+        ("numpy engine", render_coherent, {"visibility": "depth", "engine": "numpy"}),
         ("new", render_coherent, {"visibility": "depth"}),
     )
+    # compile (or load) the compiled engine before timing it: a one-off per installation
+    coarse = {"spacing_wavelengths": 8.0, "seabed_spacing_wavelengths": 8.0}
+    render_coherent(*job, **{**options, **coarse}, force=True)
     best: dict[str, float] = {}
     cpu: dict[str, float] = {}
     images: dict[str, Any] = {}

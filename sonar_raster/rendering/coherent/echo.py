@@ -76,14 +76,14 @@ class KaiserBessel:
         cell = pos.astype(np.int64)
         np.minimum(cell, _TABLE - 1, out=cell)
         pos -= cell
-        rows = np.take(self._table(), cell, axis=1)
+        rows = np.take(self.table(), cell, axis=1)
         w = rows[self.taps :] * pos
         w += rows[: self.taps]
         first = base.astype(np.int64)
         first -= self.taps // 2 - 1
         return first, w
 
-    def _table(self) -> np.ndarray:
+    def table(self) -> np.ndarray:
         """``φ_q(f_i)`` (rows q < W) and ``φ_q(f_{i+1}) − φ_q(f_i)`` (rows W + q), shape (2W, T).
 
         ``φ_q(f) = φ(q − W/2 + 1 − f)`` is tap q's weight at fraction ``f_i = i / _TABLE``.

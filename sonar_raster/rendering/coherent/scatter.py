@@ -187,6 +187,22 @@ def generate(
         Orthonormal rows the normals are given in (default ``axes``; the fan's axes when
         ``axes`` is a crabbed or pitched segment's shear map).
     """
+    for faces, ids, runs in generate_runs(surface, axes, origin, bounds, chunk, normal_axes):
+        yield _expand(surface.n_sub, faces, ids, runs)
+
+
+def generate_runs(
+    surface: ScatterSurface,
+    axes: np.ndarray,
+    origin: np.ndarray,
+    bounds: np.ndarray,
+    chunk: int,
+    normal_axes: np.ndarray | None = None,
+) -> Iterator[tuple[FaceTable, np.ndarray, Runs]]:
+    """:func:`generate`'s facets as runs, not expanded: ``(faces, ids, runs)`` per chunk.
+
+    ``runs.tri`` indexes ``ids`` (face indices); ``faces`` is the same table for every chunk.
+    """
     proj = project(surface.tri, origin, axes, _rotate)
     ids = np.flatnonzero(overlaps(proj, bounds))
     if len(ids) == 0:
@@ -194,7 +210,7 @@ def generate(
     normal = _rotate(surface.normal, axes if normal_axes is None else normal_axes)
     faces = FaceTable(normal, surface.facet_area, surface.reflectivity)
     for runs in runs_in_box(proj, surface.n_sub, ids, bounds, row_block=_ROW_BLOCK, chunk=chunk):
-        yield _expand(surface.n_sub, faces, ids, runs)
+        yield faces, ids, runs
 
 
 def _rotate(v: np.ndarray, axes: np.ndarray) -> np.ndarray:

@@ -25,9 +25,9 @@ from dataclasses import dataclass
 import numpy as np
 
 #: Relative slack of the range comparison (float32 ranges, curvature between rays).
-_REL_TOL = 1e-4
+REL_TOL = 1e-4
 #: Slack in range bins.
-_BIN_TOL = 0.25
+BIN_TOL = 0.25
 #: Most rows of one map (the GL target's limit is 16384).
 MAX_ROWS = 8192
 
@@ -135,5 +135,5 @@ def _test(m: _Map, t: np.ndarray, x: np.ndarray, v: np.ndarray, range_bin: float
     nearest_far = np.maximum(
         np.maximum(flat[a + j], flat[a + j1]), np.maximum(flat[b + j], flat[b + j1])
     )
-    ok = r <= nearest_far * (1.0 + _REL_TOL) + _BIN_TOL * range_bin
+    ok = r <= nearest_far * (1.0 + REL_TOL) + BIN_TOL * range_bin
     return ok | ~inside
