@@ -178,6 +178,7 @@ def main() -> None:
     cli.add_argument("--pings", type=int, default=200)
     cli.add_argument("--lines", default="1", help="line counts to run, e.g. 1,3")
     cli.add_argument("--overlap", type=float, default=0.4, help="swath overlap of neighbours")
+    cli.add_argument("--docs", action="store_true", help="also write docs/bathymetry.png")
     cli.add_argument(
         "--independent", action="store_true", help="with several lines, also fit each alone"
     )
@@ -218,7 +219,8 @@ def main() -> None:
     fig.tight_layout()
     args.out.mkdir(parents=True, exist_ok=True)
     fig.savefig(args.out / "bathymetry.png", dpi=110)
-    fig.savefig(DOCS / "bathymetry.png", dpi=70)
+    if args.docs:
+        fig.savefig(DOCS / "bathymetry.png", dpi=70)
     print(f"plot: {args.out / 'bathymetry.png'}")
 
 

@@ -95,6 +95,10 @@ def test_prior_gradients_match_central_differences_everywhere(lines):
     problem.flat = p[: problem.nz].reshape(problem.kz) + rng.normal(0.0, 0.05, problem.kz)
     problem.views[0].altitude[3] = np.nan  # a ping without a first return
     p[problem.nz : problem.nz + problem.nr] += 0.5
+    # objects found by their shadows (off the line profile and the relief prior) and the
+    # ground in their shadows (held at the flat seabed)
+    problem.objects = (rng.uniform(size=problem.kz) < 0.2).astype(float)
+    problem.shadowed = ((rng.uniform(size=problem.kz) < 0.2) & (problem.objects == 0)) * 1.0
 
     def priors(q):
         grad = np.zeros_like(q)
@@ -302,3 +306,67 @@ def test_freeing_the_reflectivity_widens_the_elevation_uncertainty():
     held = solve.elevation_std(problem, p, samples=64, reflectivity=False)
     ratio = [np.median(free[k] / held[k]) for k in free]
     assert min(ratio) > 1.05, ratio
+
+
+def test_nearest_ping_within_a_gap():
+    found = np.array([0, 1, 0, 0, 1, 0, 0, 0, 0, 1, 0], bool)
+    assert solve._nearest_within(found, 3).tolist() == [-1, 1, 1, 4, 4, -1, -1, -1, -1, 9, -1]
+    assert solve._nearest_within(np.zeros(4, bool), 3).tolist() == [-1] * 4
+
+
+#: Centre and half-width across track, and height of the box, metres.
+BOX = (8.0, 1.0, 1.2)
+
+
+@functools.cache
+def _box_render(looks: float):
+    """Both sides of 60 pings over a flat seabed with a box to starboard (``BOX``)."""
+    from sonar_raster.rendering.gl.raster import RasterRenderer
+    from sonar_raster.scene import build_scene
+    from sonar_raster.scenes.seabed import from_grid
+    from sonar_raster.sonar import BeamPattern, Sonar
+    from sonar_raster.trajectory import Trajectory
+
+    sonar = Sonar(
+        max_range=14.0,
+        range_bin=0.05,
+        beam=BeamPattern.gaussian(60.0),
+        tilt=math.radians(20.0),
+        sides=("port", "starboard"),
+    )
+    track = Trajectory.straight((0.0, 0.0, 6.0), 0.0, 0.1, 60)
+    x, y = np.arange(-16, 16.01, 0.05), np.arange(-0.5, 6.51, 0.05)
+    xx, yy = np.meshgrid(x, y)
+    cx, half, height = BOX
+    box = (np.abs(xx - cx) < half) & (np.abs(yy - 3.0) < 1.5)
+    field = from_grid(np.where(box, height, 0.0), 0.05, 0.05, x0=-16, y0=-0.5)
+    image = RasterRenderer().render(build_scene([field.mesh(0.5)]), sonar, track)
+    rng = np.random.default_rng(7)
+    sides = {k: v.astype(float) for k, v in image.sides.items()}
+    if looks:
+        sides = {k: v * rng.gamma(looks, 1.0 / looks, v.shape) for k, v in sides.items()}
+    return sides, track
+
+
+@pytest.mark.parametrize("looks", [0.0, 1.0])
+def test_an_object_grows_to_its_shadow_height(monkeypatch, looks):
+    """From a flat start the shadow behind an object is cheaper to explain by a dark R or a
+    hollow than by growing the object (no shadow, so no gradient towards one, until it is tall
+    enough to cast it); starting the object at its shadow's height lets the fit keep it."""
+    sides, track = _box_render(looks)
+
+    def height(fit):
+        xx, yy = np.meshgrid(fit.x, track.positions[:, 1])
+        cx, half, _ = BOX
+        on = (np.abs(xx - cx) < half - 0.2) & (np.abs(yy - 3.0) < 1.2)
+        off = (xx > 2.0) & (xx < cx - half - 1.0)
+        z = fit.elevation["starboard"]
+        return float(np.mean(z[on]) - np.mean(z[off]))
+
+    fit = surface.fit_surface(sides, 0.05, ping_spacing=0.1, uncertainty=False)
+    with monkeypatch.context() as patch:
+        patch.setattr(solve, "SHADOW_START_BINS", None)
+        flat = surface.fit_surface(sides, 0.05, ping_spacing=0.1, uncertainty=False)
+    print("with the shadow start", height(fit), "flat start", height(flat))
+    assert height(fit) > 0.8 * BOX[2]
+    assert height(flat) < height(fit) - 0.1

@@ -36,6 +36,10 @@ ANCHOR_BINS = 4.0
 #: Standard deviation of the relief about the flat seabed at the first return, metres (None:
 #: no such prior). The image hardly fixes a broad bending of Z that the beam can absorb.
 RELIEF_STD: float | None = 0.3
+#: Standard deviation of the ground's height about the flat seabed inside the shadows of
+#: objects the fit found by their shadows, in range bins (in data units, like the curvature):
+#: the data say nothing there, and a hollow behind a lower object casts the same shadow.
+SHADOW_GROUND_BINS = 1.0
 #: Weight of the prior holding each view's line-averaged across-track profile of Z at the flat
 #: seabed: a mean deviation of one range bin costs this many nats per knot and look (0: none).
 LINE_PROFILE_WEIGHT = 1.0
@@ -90,6 +94,14 @@ class Problem:
         The knots and Φ nodes.
     flat : ndarray, shape (ky, kx)
         Z knots of the flat seabed at the first returns (the start and the priors' reference).
+
+    Attributes
+    ----------
+    objects : ndarray, shape (ky, kx)
+        1 on the Z knots of objects found by their shadows (the fit's shadow start), else 0:
+        the line-profile prior leaves them out of its line average, the relief prior off them.
+    shadowed : ndarray, shape (ky, kx)
+        1 on the Z knots of the ground in those objects' shadows: held near the flat seabed.
     """
 
     def __init__(self, views: Sequence[View], grid: Grid, flat: np.ndarray) -> None:
@@ -98,6 +110,8 @@ class Problem:
         self.flat = flat
         ky, kx = (len(k) for k in grid.knots("z"))
         self.kz = (ky, kx)
+        self.objects = np.zeros(self.kz)
+        self.shadowed = np.zeros(self.kz)
         ry, rx = (len(k) for k in grid.knots("r"))
         self.kr = (ry, rx)
         self.nz = self.kz[0] * self.kz[1]
@@ -106,6 +120,7 @@ class Problem:
         pixels = sum(float(np.sum(v.mask)) for v in self.views)
         mean_looks = float(np.mean([v.looks for v in self.views]))
         per_knot = mean_looks * pixels / max(self._seen_knots(), 1)
+        self.per_knot = per_knot
         self.w_z = per_knot / (2.0 * CURVATURE_STD**2)
         self.w_z_along = per_knot / (2.0 * CURVATURE_STD_ALONG**2)
         self.w_r = REFLECTIVITY_WEIGHT * mean_looks * pixels / max(self.nr, 1)
@@ -118,6 +133,21 @@ class Problem:
         self.anchored: dict[int, int] = {}
         for i, v in enumerate(self.views):
             self.anchored.setdefault(v.line, i)
+
+    def relief_weights(self) -> np.ndarray | None:
+        """Per Z knot, the weight of ``(Z − flat)²`` in the priors, (ky, kx); None if none.
+
+        ``RELIEF_STD`` everywhere but on objects found by their shadows; on the ground in
+        their shadows (where the data say nothing of Z) ``SHADOW_GROUND_BINS``, as the shadow's
+        height assumes a flat seabed there.
+        """
+        w = np.zeros(self.kz)
+        if RELIEF_STD is not None:
+            w += self.grid.z_spacing**2 / (2.0 * RELIEF_STD**2) * (1.0 - self.objects)
+        if self.shadowed.any():
+            std = SHADOW_GROUND_BINS * self.views[0].geom.range_bin
+            w += self.per_knot / (2.0 * std**2) * self.shadowed
+        return w if w.any() else None
 
     def _seen_knots(self) -> int:
         seen = np.zeros(self.nz, bool)
@@ -212,11 +242,11 @@ class Problem:
             value, g = second_difference(zc, axis, grid.z_spacing, w)
             total += value
             g_zc += g
-        if RELIEF_STD is not None:
-            w = grid.z_spacing**2 / (2.0 * RELIEF_STD**2)
+        relief = self.relief_weights()
+        if relief is not None:
             d = zc - self.flat
-            total += w * float(np.sum(d * d))
-            g_zc += 2.0 * w * d
+            total += float(np.sum(relief * d * d))
+            g_zc += 2.0 * relief * d
         if self.w_line > 0:
             value, g = line_profile(self, (zc - self.flat).ravel())
             total += value
@@ -367,25 +397,33 @@ def line_profile(problem: Problem, dev: np.ndarray) -> tuple[float, np.ndarray]:
     Φ, shared along a line, absorbs any bend of Z that every ping of the line shares, so the
     image cannot fix it: per view, the across-track profile of the deviation averaged over the
     line's pings, taken relative to the line's nadir (whose level the first return fixes) and
-    low-passed (a smooth Φ absorbs only a broad bend), is held at zero. Quadratic in ``dev``,
-    so its gradient at ``v`` is also its Hessian times ``v``. Returns the value and the
-    gradient (nz,).
+    low-passed (a smooth Φ absorbs only a broad bend), is held at zero. Cells on
+    ``problem.objects`` are left out of the average (an object raises its own pings, not the
+    line's bend; averaged in, it pulls every other ping at its range down, most where nothing
+    else holds them: in its shadow). Quadratic in ``dev``, so its gradient at ``v`` is also its
+    Hessian times ``v``. Returns the value and the gradient (nz,).
     """
     value, grad = 0.0, np.zeros(problem.nz)
     spacing = problem.grid.z_spacing
+    objects = problem.objects.ravel()
     for view in problem.views:
         pings, cells = view.shape
         d = np.asarray(view.bz @ dev).reshape(pings, cells)
         at = np.asarray(view.nadir @ dev)
-        m = d.mean(axis=0) - float(at.mean())
+        if objects.any():
+            keep = 1.0 - np.clip(np.asarray(view.bz @ objects).reshape(pings, cells), 0.0, 1.0)
+        else:
+            keep = np.ones((pings, cells))
+        count = np.maximum(keep.sum(axis=0), 1e-9)
+        m = (keep * d).sum(axis=0) / count - float(at.mean())
         sigma = LINE_PROFILE_SCALE * float(np.nanmedian(view.altitude)) / view.geom.dx
         low = ndimage.gaussian_filter1d(m, sigma, mode="constant")
         # per knot along the line and across it, as in data units elsewhere
         w = problem.w_line * (pings * view.geom.dy / spacing) * (view.geom.dx / spacing)
         value += w * float(np.sum(low * low))
         g_m = ndimage.gaussian_filter1d(2.0 * w * low, sigma, mode="constant")
-        g_d = np.broadcast_to(g_m[None, :] / pings, (pings, cells))
-        grad += view.bz.T @ np.ascontiguousarray(g_d).ravel()
+        g_d = keep * (g_m / count)[None, :]
+        grad += view.bz.T @ g_d.ravel()
         grad -= view.nadir.T @ np.full(pings, float(np.sum(g_m)) / pings)
     return value, grad
 
