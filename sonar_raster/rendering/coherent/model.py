@@ -411,6 +411,8 @@ def render_coherent(
             )
     estimate = _estimate(work, blocks, trajectory, block)
     peak = _memory_estimate(surface, grid, len(sides), block, int(chunk), work.model, trajectory)
+    if engine == "compiled":  # one more accumulator per extra thread
+        peak += (_threads() - 1) * block * len(sides) * grid.n * 16
     estimate = estimate.with_memory(peak)
     check_job(
         estimate,
