@@ -598,8 +598,15 @@ def _engine(engine: str, method: str, visibility: str) -> str:
             "use engine='numpy' for the others"
         )
     if engine == "auto":
-        return "compiled" if fits else "numpy"
+        return "compiled" if fits and _numba_available() else "numpy"
     return engine
+
+
+def _numba_available() -> bool:
+    """Whether numba imports (a dependency, but not every platform has its wheels)."""
+    import importlib.util
+
+    return importlib.util.find_spec("numba") is not None
 
 
 def _render_block_compiled(
