@@ -67,6 +67,12 @@ SHADOW_START_BINS: float | None = 2.0
 #: object's top can be no brighter than the seabed for a metre before its shadow (single look,
 #: 4-look coarse level: 0.3 m found 4 of 15 pings of a 2 m wide box, 1 m all 15).
 SHADOW_HIGHLIGHT_GAP_M = 1.0
+#: Widest start given to an object across track, metres, back from the edge that casts the
+#: shadow: the highlight's start is no measure of the near edge far out (near range is
+#: brighter than the ping's median, so with a 1 m gap the bright run reaches back towards
+#: nadir: a 2.5 m box 22 m out started 14 m wide); 1 m was too narrow for the fit to widen
+#: (bench box, one line: 0.71 against 0.52).
+SHADOW_OBJECT_M = 3.0
 #: Most pings between two pings with shadow heights that are filled from them.
 _SHADOW_GAP = 3
 #: Fewest pings in a row whose shadows give heights for an object to be raised (two gave
@@ -388,13 +394,13 @@ def _shadow_start(problem: Problem) -> tuple[np.ndarray, np.ndarray]:
     Per view and ping, :func:`..shadows.find_shadows` gives the highlight's first bin ``k``,
     the shadow's ``[a, b)`` and the height ``H = Ls h / (R + Ls)``; the object stands ``H``
     high over the ground ranges whose top (``h − H`` below the transducer) is seen from slant
-    range ``k`` (its near edge) to ``a`` (the edge that casts the shadow). Heights found on
-    fewer than ``_SHADOW_PINGS`` pings in a row are dropped; gaps of up to ``_SHADOW_GAP``
-    pings between pings with heights take the nearer one's. Each knot takes the
-    basis-weighted mean of those bumps (zero elsewhere) over the cells it covers (a
-    least-squares fit rings at the bumps' edges), shape (nz,);
-    likewise the share of each knot's cells in those shadows (on the flat seabed: ground ranges
-    seen from slant ranges ``a`` to ``b``), shape (nz,).
+    range ``k`` (its near edge, at most ``SHADOW_OBJECT_M`` from the other) to ``a`` (the edge
+    that casts the shadow). Heights found on fewer than ``_SHADOW_PINGS`` pings in a row are
+    dropped; gaps of up to ``_SHADOW_GAP`` pings between pings with heights take the nearer
+    one's. Each knot takes the basis-weighted mean of those bumps (zero elsewhere) over the
+    cells it covers (a least-squares fit rings at the bumps' edges), shape (nz,); likewise
+    the share of each knot's cells in those shadows (on the flat seabed: ground ranges seen
+    from slant ranges ``a`` to ``b``), shape (nz,).
     """
     from ..shadows import find_shadows
 
@@ -419,6 +425,7 @@ def _shadow_start(problem: Problem) -> tuple[np.ndarray, np.ndarray]:
             top = h - height[j]
             near = math.sqrt(max((found.highlight[j] * rb) ** 2 - top * top, 0.0))
             far = math.sqrt(max((found.start[j] * rb) ** 2 - top * top, 0.0))
+            near = max(near, far - SHADOW_OBJECT_M)
             bump[i, (x >= near) & (x <= far)] = height[j]
             start = math.sqrt(max((found.start[j] * rb) ** 2 - h * h, 0.0))
             end = math.sqrt(max((found.end[j] * rb) ** 2 - h * h, 0.0))
