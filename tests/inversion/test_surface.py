@@ -370,3 +370,15 @@ def test_an_object_grows_to_its_shadow_height(monkeypatch, looks):
     print("with the shadow start", height(fit), "flat start", height(flat))
     assert height(fit) > 0.8 * BOX[2]
     assert height(flat) < height(fit) - 0.1
+
+
+def test_shadow_start_skips_pings_without_a_first_return():
+    sides, _ = _box_render(0.0)
+    line = layout.Line.straight(sides, 0.05, 0.1, None)
+    problem = solve.problem_at([line], level=2)
+    whole = solve._shadow_start(problem)[0]
+    for view in problem.views:
+        view.altitude[5] = np.nan  # a glitch: find_shadows refuses NaN altitudes
+    raised = solve._shadow_start(problem)[0]
+    assert whole.max() == pytest.approx(BOX[2], abs=0.1)
+    assert raised.max() == pytest.approx(whole.max(), abs=0.05)

@@ -409,8 +409,12 @@ def _shadow_start(problem: Problem) -> tuple[np.ndarray, np.ndarray]:
     weight = np.zeros(problem.nz)
     for view in problem.views:
         rb = view.geom.range_bin
-        found = find_shadows(view.image, rb, view.altitude, gap_m=SHADOW_HIGHLIGHT_GAP_M)
-        height = np.nan_to_num(found.height)
+        known = np.isfinite(view.altitude) & (view.altitude > 0)
+        if not known.any():  # no first return anywhere: nothing to measure shadows from
+            continue
+        alt = np.where(known, view.altitude, float(np.median(view.altitude[known])))
+        found = find_shadows(view.image, rb, alt, gap_m=SHADOW_HIGHLIGHT_GAP_M)
+        height = np.where(known, np.nan_to_num(found.height), 0.0)
         tall = height >= (SHADOW_START_BINS or 0.0) * rb
         runs, count = ndimage.label(tall)  # seen on at least _SHADOW_PINGS pings in a row
         sizes = np.bincount(runs.ravel(), minlength=count + 1)
@@ -421,7 +425,7 @@ def _shadow_start(problem: Problem) -> tuple[np.ndarray, np.ndarray]:
         x = view.geom.x
         for i in np.flatnonzero(source >= 0):
             j = source[i]
-            h = view.altitude[i]
+            h = alt[i]
             top = h - height[j]
             near = math.sqrt(max((found.highlight[j] * rb) ** 2 - top * top, 0.0))
             far = math.sqrt(max((found.start[j] * rb) ** 2 - top * top, 0.0))
