@@ -110,3 +110,15 @@ def box_from_bounds(bounds, reflectivity=0.8, name="box") -> MeshPart:
 
     mesh = trimesh.creation.box(bounds=np.asarray(bounds, dtype=float))
     return MeshPart(np.array(mesh.vertices), np.array(mesh.faces), reflectivity, name)
+
+
+@pytest.fixture(scope="session")
+def shadow_scene():
+    """A seabed with a box on each side of a track along +y at x 0, each casting a shadow."""
+    return build_scene(
+        [
+            rect_seabed(-1, 13, -8, 8),
+            box_from_bounds([[5.0, 2.0, 0.0], [5.8, 3.5, 0.7]]),
+            box_from_bounds([[-0.5, -5.0, 0.0], [3.0, -4.2, 0.4]], name="ledge"),
+        ]
+    )

@@ -194,8 +194,10 @@ def test_speckled_sand_waves_beat_a_flat_seabed_because_pings_share_the_surface(
 
 
 @functools.cache
-def _flat_render(alt: float):
-    """Both sides of 60 pings over a flat, clean seabed at altitude ``alt``."""
+def _grid_render(alt: float, box: tuple[float, float, float] | None = None):
+    """Both sides of 60 pings, 0.1 m apart at altitude ``alt``, over a flat, clean seabed with
+    an optional box to starboard (centre and half-width across track, height; 3 m along), and
+    the track."""
     from sonar_raster.rendering.gl.raster import RasterRenderer
     from sonar_raster.scene import build_scene
     from sonar_raster.scenes.seabed import from_grid
@@ -210,9 +212,19 @@ def _flat_render(alt: float):
         sides=("port", "starboard"),
     )
     track = Trajectory.straight((0.0, 0.0, alt), 0.0, 0.1, 60)
-    field = from_grid(np.zeros((141, 641)), 0.05, 0.05, x0=-16, y0=-0.5)
+    xx, yy = np.meshgrid(np.arange(641) * 0.05 - 16.0, np.arange(141) * 0.05 - 0.5)
+    heights = np.zeros(xx.shape)
+    if box is not None:
+        cx, half, height = box
+        heights[(np.abs(xx - cx) < half) & (np.abs(yy - 3.0) < 1.5)] = height
+    field = from_grid(heights, 0.05, 0.05, x0=-16, y0=-0.5)
     image = RasterRenderer().render(build_scene([field.mesh(0.5)]), sonar, track)
-    return {k: v.astype(float) for k, v in image.sides.items()}
+    return {k: v.astype(float) for k, v in image.sides.items()}, track
+
+
+def _flat_render(alt: float):
+    """Both sides of 60 pings over a flat, clean seabed at altitude ``alt``."""
+    return _grid_render(alt)[0]
 
 
 @pytest.mark.parametrize(
@@ -318,34 +330,14 @@ def test_nearest_ping_within_a_gap():
 BOX = (8.0, 1.0, 1.2)
 
 
-@functools.cache
 def _box_render(looks: float):
-    """Both sides of 60 pings over a flat seabed with a box to starboard (``BOX``)."""
-    from sonar_raster.rendering.gl.raster import RasterRenderer
-    from sonar_raster.scene import build_scene
-    from sonar_raster.scenes.seabed import from_grid
-    from sonar_raster.sonar import BeamPattern, Sonar
-    from sonar_raster.trajectory import Trajectory
-
-    sonar = Sonar(
-        max_range=14.0,
-        range_bin=0.05,
-        beam=BeamPattern.gaussian(60.0),
-        tilt=math.radians(20.0),
-        sides=("port", "starboard"),
-    )
-    track = Trajectory.straight((0.0, 0.0, 6.0), 0.0, 0.1, 60)
-    x, y = np.arange(-16, 16.01, 0.05), np.arange(-0.5, 6.51, 0.05)
-    xx, yy = np.meshgrid(x, y)
-    cx, half, height = BOX
-    box = (np.abs(xx - cx) < half) & (np.abs(yy - 3.0) < 1.5)
-    field = from_grid(np.where(box, height, 0.0), 0.05, 0.05, x0=-16, y0=-0.5)
-    image = RasterRenderer().render(build_scene([field.mesh(0.5)]), sonar, track)
+    """Both sides of 60 pings at 6 m over a flat seabed with ``BOX`` to starboard, with
+    ``looks``-look speckle (0: none), and the track."""
+    clean, track = _grid_render(6.0, BOX)
+    if not looks:
+        return clean, track
     rng = np.random.default_rng(7)
-    sides = {k: v.astype(float) for k, v in image.sides.items()}
-    if looks:
-        sides = {k: v * rng.gamma(looks, 1.0 / looks, v.shape) for k, v in sides.items()}
-    return sides, track
+    return {k: v * rng.gamma(looks, 1.0 / looks, v.shape) for k, v in clean.items()}, track
 
 
 @pytest.mark.parametrize("looks", [0.0, 1.0])

@@ -12,13 +12,10 @@ import math
 
 import numpy as np
 import pytest
-from conftest import box_from_bounds as box
-from conftest import rect_seabed as seabed
 
 from sonar_raster.errors import SonarRasterError
 from sonar_raster.rendering.coherent import compiled
 from sonar_raster.rendering.coherent.model import HorizontalBeam, render_coherent
-from sonar_raster.scene import build_scene
 from sonar_raster.sonar import BeamPattern, Sonar
 from sonar_raster.trajectory import Trajectory
 
@@ -31,18 +28,6 @@ BEAMED = Sonar(
     beam=BeamPattern.gaussian(50.0),
     tilt=math.radians(20.0),
 )
-
-
-@pytest.fixture(scope="module")
-def scene():
-    # a box on each side, each casting a shadow on the seabed behind it
-    return build_scene(
-        [
-            seabed(-1, 13, -8, 8),
-            box([[5.0, 2.0, 0.0], [5.8, 3.5, 0.7]]),
-            box([[-0.5, -5.0, 0.0], [3.0, -4.2, 0.4]], name="ledge"),
-        ]
-    )
 
 
 def _track(kind: str) -> Trajectory:
@@ -70,11 +55,11 @@ CASES = {
 
 
 @pytest.mark.parametrize("case", list(CASES))
-def test_compiled_engine_equals_the_numpy_path(scene, case):
+def test_compiled_engine_equals_the_numpy_path(shadow_scene, case):
     sonar, track, extra = CASES[case]
     kw = {"spacing_wavelengths": 0.5, "seabed_spacing_wavelengths": 1.0, "seed": 3, **extra}
-    fast = render_coherent(scene, sonar, _track(track), engine="compiled", **kw)
-    slow = render_coherent(scene, sonar, _track(track), engine="numpy", **kw)
+    fast = render_coherent(shadow_scene, sonar, _track(track), engine="compiled", **kw)
+    slow = render_coherent(shadow_scene, sonar, _track(track), engine="numpy", **kw)
     a, b = fast.metadata, slow.metadata
     assert a["engine"] == "compiled" and b["engine"] == "numpy"
     assert a["n_scatterers"] == b["n_scatterers"] > 10_000
@@ -87,16 +72,16 @@ def test_compiled_engine_equals_the_numpy_path(scene, case):
         assert np.abs(x - y).sum() / y.sum() < 2e-6, side
 
 
-def test_auto_engine_is_compiled_where_it_applies_and_numpy_elsewhere(scene):
+def test_auto_engine_is_compiled_where_it_applies_and_numpy_elsewhere(shadow_scene):
     track = _track("straight")
     kw = {"spacing_wavelengths": 2.0, "seabed_spacing_wavelengths": 2.0}
-    assert render_coherent(scene, SONAR, track, **kw).metadata["engine"] == "compiled"
-    rays = render_coherent(scene, SONAR, track, visibility="rays", **kw)
+    assert render_coherent(shadow_scene, SONAR, track, **kw).metadata["engine"] == "compiled"
+    rays = render_coherent(shadow_scene, SONAR, track, visibility="rays", **kw)
     assert rays.metadata["engine"] == "numpy"
     with pytest.raises(SonarRasterError, match="compiled engine needs"):
-        render_coherent(scene, SONAR, track, visibility="rays", engine="compiled", **kw)
+        render_coherent(shadow_scene, SONAR, track, visibility="rays", engine="compiled", **kw)
     with pytest.raises(SonarRasterError, match="engine must be one of"):
-        render_coherent(scene, SONAR, track, engine="gpu", **kw)
+        render_coherent(shadow_scene, SONAR, track, engine="gpu", **kw)
 
 
 def test_compiled_cosine_sine_arctangent_and_log_match_numpy():

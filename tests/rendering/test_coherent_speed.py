@@ -3,32 +3,17 @@ scatterer, per-surface spacing, and the estimate that sizes a job before it star
 
 import numpy as np
 import pytest
-from conftest import box_from_bounds as box
-from conftest import rect_seabed as seabed
 
 from sonar_raster._progress import Estimate, check_job, duration_text
 from sonar_raster.errors import SonarRasterError
 from sonar_raster.rendering.coherent.model import face_spacing, render_coherent
 from sonar_raster.rendering.coherent.scatter import scatter_surface
-from sonar_raster.scene import build_scene
 from sonar_raster.sonar import Sonar
 from sonar_raster.trajectory import Trajectory
 
 pytestmark = pytest.mark.usefixtures("strict_float")
 
 SONAR = Sonar(frequency_hz=20e3, max_range=12.0, range_bin=0.1, sides=("port", "starboard"))
-
-
-@pytest.fixture(scope="module")
-def shadow_scene():
-    # a box on each side, each casting a shadow on the seabed behind it
-    return build_scene(
-        [
-            seabed(-1, 13, -8, 8),
-            box([[5.0, 2.0, 0.0], [5.8, 3.5, 0.7]]),
-            box([[-0.5, -5.0, 0.0], [3.0, -4.2, 0.4]], name="ledge"),
-        ]
-    )
 
 
 @pytest.fixture(scope="module")

@@ -22,13 +22,8 @@ import math
 import numpy as np
 from numba import njit
 
-_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
-_MIX1 = np.uint64(0xBF58476D1CE4E5B9)
-_MIX2 = np.uint64(0x94D049BB133111EB)
-#: The hash's per-draw offsets ``(c + 1) · golden`` (mod 2⁶⁴), c = 0..3 (see scatter._uniforms).
-STEPS = np.array(
-    [((c + 1) * 0x9E3779B97F4A7C15) & 0xFFFFFFFFFFFFFFFF for c in range(4)], dtype=np.uint64
-)
+# the jitter's hash: the same constants as scatter._splitmix and scatter._uniforms
+from .scatter import _GOLDEN, _MIX1, _MIX2, STEPS
 
 #: Indices of the scalar parameters in the ``params`` vector of :func:`render_runs`.
 P_R_LIMIT, P_SLACK, P_U_CUT, P_DEN, P_OFF, P_WAVELENGTH, P_TILT = 0, 1, 2, 3, 4, 5, 6

@@ -691,13 +691,14 @@ def _render_block_compiled(
     threads = _threads()
     accs = [np.zeros((rows, grid.n, 2)) for _ in range(threads)]  # a term's taps together
     counts = [np.zeros(cc.N_STATS) for _ in range(threads)]
+    roll = np.ascontiguousarray(item.roll, dtype=np.float64)
 
     def run(part: Any, acc: np.ndarray, count: np.ndarray, faces: Any) -> None:
         face, i, lo, length, base, slope = part
         cc.render_runs(
             face, i, lo, length, base, slope, work.surface.n_sub,
             faces.normal, factor, faces.facet_area,
-            tp, order, pings, np.ascontiguousarray(item.roll, dtype=np.float64), travel,
+            tp, order, pings, roll, travel,
             params, flags, beam.angles, beam.values,
             map_ranges[0], map_ranges[1], map_rows, sonar.range_bin,
             jitter_axes, seed_key, table, grid.kernel.taps, acc, count,

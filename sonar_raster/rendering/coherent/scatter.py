@@ -34,6 +34,10 @@ JITTER_CLIP = 4.0
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _MIX1 = np.uint64(0xBF58476D1CE4E5B9)
 _MIX2 = np.uint64(0x94D049BB133111EB)
+#: Per-draw offsets of the hash, ``(c + 1) · golden`` (mod 2⁶⁴) for draw c.
+STEPS = np.array(
+    [((c + 1) * 0x9E3779B97F4A7C15) & 0xFFFFFFFFFFFFFFFF for c in range(8)], dtype=np.uint64
+)
 
 
 @dataclass(frozen=True)
@@ -240,7 +244,7 @@ def _splitmix(z: np.ndarray) -> np.ndarray:
 
 
 def _uniforms(face: np.ndarray, cell: np.ndarray, seed: int, count: int) -> np.ndarray:
-    """``count`` uniforms in (0, 1) per (face, cell), shape (count, k): a pure function."""
+    """``count`` (<= 8) uniforms in (0, 1) per (face, cell), shape (count, k): a pure function."""
     key = face.astype(np.uint64)
     key ^= np.uint64(seed & 0xFFFFFFFFFFFFFFFF)
     key = _splitmix(key)
@@ -248,8 +252,7 @@ def _uniforms(face: np.ndarray, cell: np.ndarray, seed: int, count: int) -> np.n
     key = _splitmix(key)
     out = np.empty((count, len(face)))
     for c in range(count):
-        step = np.uint64(((c + 1) * 0x9E3779B97F4A7C15) & 0xFFFFFFFFFFFFFFFF)
-        bits = _splitmix(key + step)
+        bits = _splitmix(key + STEPS[c])
         bits >>= np.uint64(11)
         np.multiply(bits.view(np.int64), 1.0 / (1 << 53), out=out[c])  # int64: SIMD convert
         out[c] += 0.5 / (1 << 53)
