@@ -23,7 +23,7 @@ import numpy as np
 from numba import njit
 
 # the jitter's hash: the same constants as scatter._splitmix and scatter._uniforms
-from .scatter import _GOLDEN, _MIX1, _MIX2, STEPS
+from .scatter import GOLDEN, MIX1, MIX2, STEPS
 
 #: Indices of the scalar parameters in the ``params`` vector of :func:`render_runs`.
 P_R_LIMIT, P_SLACK, P_U_CUT, P_DEN, P_OFF, P_WAVELENGTH, P_TILT = 0, 1, 2, 3, 4, 5, 6
@@ -62,11 +62,11 @@ _ATANH = tuple(1.0 / (2 * k + 1) for k in range(8, -1, -1))
 
 @_jit
 def _splitmix(z):  # pragma: no cover - compiled
-    z = z + _GOLDEN
+    z = z + GOLDEN
     z ^= z >> np.uint64(30)
-    z *= _MIX1
+    z *= MIX1
     z ^= z >> np.uint64(27)
-    z *= _MIX2
+    z *= MIX2
     z ^= z >> np.uint64(31)
     return z
 

@@ -31,9 +31,9 @@ _ROW_BLOCK = 1 << 18
 #: Jitter truncation, in standard deviations per axis.
 JITTER_CLIP = 4.0
 
-_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
-_MIX1 = np.uint64(0xBF58476D1CE4E5B9)
-_MIX2 = np.uint64(0x94D049BB133111EB)
+GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+MIX1 = np.uint64(0xBF58476D1CE4E5B9)
+MIX2 = np.uint64(0x94D049BB133111EB)
 #: Per-draw offsets of the hash, ``(c + 1) · golden`` (mod 2⁶⁴) for draw c.
 STEPS = np.array(
     [((c + 1) * 0x9E3779B97F4A7C15) & 0xFFFFFFFFFFFFFFFF for c in range(8)], dtype=np.uint64
@@ -234,11 +234,11 @@ def _expand(n_sub: np.ndarray, faces: FaceTable, ids: np.ndarray, runs: Runs) ->
 
 def _splitmix(z: np.ndarray) -> np.ndarray:
     """SplitMix64 finaliser on uint64 arrays (wrapping arithmetic; a new array)."""
-    z = z + _GOLDEN
+    z = z + GOLDEN
     z ^= z >> np.uint64(30)
-    z *= _MIX1
+    z *= MIX1
     z ^= z >> np.uint64(27)
-    z *= _MIX2
+    z *= MIX2
     z ^= z >> np.uint64(31)
     return z
 
