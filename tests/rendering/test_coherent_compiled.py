@@ -5,7 +5,7 @@ the per-facet loop of ``compiled.render_runs``. They must count the same scatter
 scatterers and terms and give the same image to float rounding, on scenes that exercise every
 branch (both sides and shadows, a vertical beam and rolling pings, the sinc horizontal beam and
 the Eq. 10 law, a crabbed and pitched track, no jitter); the compiled loop's own cosine, sine,
-arctangent and logarithm against numpy's.
+arctangent, logarithm and power of two against numpy's.
 """
 
 import math
@@ -84,7 +84,7 @@ def test_auto_engine_is_compiled_where_it_applies_and_numpy_elsewhere(shadow_sce
         render_coherent(shadow_scene, SONAR, track, engine="gpu", **kw)
 
 
-def test_compiled_cosine_sine_arctangent_and_log_match_numpy():
+def test_compiled_cosine_sine_arctangent_log_and_exp2_match_numpy():
     rng = np.random.default_rng(0)
     f = np.concatenate([rng.uniform(-0.5, 0.5, 20000), [-0.5, -0.375, -0.25, 0.0, 0.125, 0.5]])
     cs = np.array([compiled.cos_sin_cycles(v) for v in f])
@@ -93,8 +93,12 @@ def test_compiled_cosine_sine_arctangent_and_log_match_numpy():
     y, x = rng.normal(size=(2, 20000)) * np.exp(rng.uniform(-5, 5, (2, 20000)))
     y = np.concatenate([y, [0.0, 1.0, -1.0, 0.0, 2.0, -3.0]])
     x = np.concatenate([x, [1.0, 0.0, 0.0, -1.0, 2.0, -3.0]])
+    y, x = np.append(y, [0.0, 0.0]), np.append(x, [0.0, -2.0])  # the origin, π
     at = np.array([compiled.atan2(a, b) for a, b in zip(y, x, strict=True)])
     assert np.abs(at - np.arctan2(y, x)).max() < 1e-10
     u = np.concatenate([rng.uniform(0, 1, 20000), [2.0**-53, 0.5, 0.7071067811865476, 1.0]])
     lg = np.array([compiled.log(v) for v in u])
     assert np.abs(lg - np.log(u)).max() < 1e-13
+    z = np.concatenate([rng.uniform(-40.0, 5.0, 20000), [-32.0, -0.5, 0.0, 0.5, 1.0]])
+    ex = np.array([compiled.exp2(v) for v in z])
+    assert np.abs(ex / np.exp2(z) - 1.0).max() < 1e-13

@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import logging
 import math
+import threading
 import time
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -103,6 +104,11 @@ RANGE_MARGIN_BINS = 3.0
 #: Scatterers whose terms are computed and deposited at once (their arrays stay in cache:
 #: 1.3-1.4x faster than 65536 at a time).
 _TERM_BATCH = 8192
+#: The compiled engine clips runs in chunks of this many ``chunk``s and hands them to the
+#: threads in this many parts per thread (a thread that finishes early takes the next part).
+_RUN_CHUNKS = 4
+#: Subdivision rows the compiled engine clips at once (the first chunk comes sooner).
+_RUN_ROW_BLOCK = 1 << 15
 #: Fine-grid bytes one ping block may hold (sets the pings per block).
 _BLOCK_BYTES = 96 << 20
 #: Argument of ``np.sinc`` where ``sinc⁴ = 1/2`` (half-power point of a two-way sinc pattern).
@@ -581,6 +587,77 @@ def _render_block(
     return grid.intensity(acc).reshape(len(item.pings), len(sides), grid.n_bins)
 
 
+def _compiled_arguments(work: _Work, item: _Block, sonar: Sonar, maps: Any) -> tuple:
+    """The arguments of ``compiled.render_runs`` after the facets' (see its docstring)."""
+    from . import compiled as cc
+    from .visibility import BIN_TOL, REL_TOL
+
+    grid, sides, frame, model = work.grid, work.sides, item.frame, work.model
+    order = np.argsort(item.pings[:, 0], kind="stable")
+    tp = np.ascontiguousarray(item.pings[order, 0])
+    travel = np.asarray(item.travel, dtype=np.float64)
+    params = np.zeros(cc.N_PARAMS)
+    params[cc.P_R_LIMIT] = model.r_limit
+    params[cc.P_SLACK] = _slack(work, item)
+    params[cc.P_U_CUT] = model.u_cut
+    params[cc.P_DEN] = travel[0] * math.sqrt(1.0 - model.u_cut**2) - model.u_cut * _skew(travel)
+    params[cc.P_OFF] = item.off
+    params[cc.P_WAVELENGTH] = model.wavelength
+    params[cc.P_TILT] = sonar.tilt
+    params[cc.P_ORIGIN] = grid.origin
+    params[cc.P_STEP] = grid.step
+    params[cc.P_BIN_TOL] = BIN_TOL
+    params[cc.P_REL_TOL] = REL_TOL
+    flags = np.zeros(cc.N_FLAGS, dtype=np.int64)
+    flags[cc.F_PORT] = "port" in sides
+    flags[cc.F_STARBOARD] = "starboard" in sides
+    flags[cc.F_TWO_SIDES] = len(sides) == 2
+    flags[cc.F_LAMBERT] = model.law == "lambert"
+    if model.beam_h is not None:
+        flags[cc.F_BEAM_H] = cc.BEAM_GAUSSIAN if model.beam_h.kind == "gaussian" else cc.BEAM_SINC
+        params[cc.P_BEAM_WIDTH] = model.beam_h.width
+        params[cc.P_BEAM_CUT] = model.beam_h.cutoff
+    beam = sonar.beam
+    flags[cc.F_VERTICAL] = not beam.is_uniform
+    flags[cc.F_VISIBILITY] = maps is not None
+    flags[cc.F_JITTER] = work.jitter > 0
+    level = travel[1] == 0 and travel[2] == 0
+    flags[cc.F_LINE] = level and np.ptp(item.pings[:, 1]) == 0 and np.ptp(item.pings[:, 2]) == 0
+    flags[cc.F_ONE_ROLL] = np.ptp(item.roll) == 0
+    steps = np.diff(beam.angles)
+    flags[cc.F_UNIFORM_TABLE] = bool(np.all(np.abs(steps - steps[0]) <= 1e-9 * steps[0]))
+    empty = np.full((2, 2), np.inf, dtype=np.float32)
+    map_rows = np.zeros((2, cc.N_MAP))
+    map_ranges = [empty, empty]
+    for slot, side in enumerate(("port", "starboard")):
+        if maps is not None and side in maps.maps:
+            m = maps.maps[side]
+            map_ranges[slot] = np.ascontiguousarray(m.ranges, dtype=np.float32)
+            map_rows[slot] = (
+                m.t0,
+                m.dt,
+                m.h,
+                m.c,
+                m.alpha0,
+                m.rho0,
+                m.slope0,
+                m.rho_lo,
+                m.rho_hi,
+                m.columns,
+            )
+    seed_key = np.uint64(work.seed & 0xFFFFFFFFFFFFFFFF)
+    jitter_axes = np.ascontiguousarray(work.jitter * frame.axes, dtype=np.float64)
+    table = np.ascontiguousarray(grid.kernel.table().T)  # (T, 2W): a term's taps together
+
+    return (
+        tp, order, np.ascontiguousarray(item.pings, dtype=np.float64),
+        np.ascontiguousarray(item.roll, dtype=np.float64), travel,
+        params, flags, beam.angles, beam.values,
+        map_ranges[0], map_ranges[1], map_rows, sonar.range_bin,
+        jitter_axes, seed_key, table, grid.kernel.taps,
+    )  # fmt: skip
+
+
 def _slack(work: _Work, item: _Block) -> float:
     """Travel and range slack of the cull: the jitter's reach, the pings' offset, the skew."""
     slack = (JITTER_CLIP * math.sqrt(3.0) * work.jitter + item.off) / item.travel[0]
@@ -620,102 +697,52 @@ def _render_block_compiled(
 ) -> np.ndarray:
     """:func:`_render_block` with the per-facet loop of :mod:`.compiled`, on every core.
 
-    Each chunk of runs is split between threads by facet count; each thread deposits on its
-    own accumulator (the loop releases the GIL), summed at the end of the block.
+    Runs are clipped in chunks (the first while the GL draws the range maps, the next while
+    the threads work on the last); each chunk is cut into parts of about equal facet counts
+    that the pool's threads take in turn, each depositing on its own accumulator (the loop
+    releases the GIL); the accumulators are summed at the end of the block.
     """
     from . import compiled as cc
-    from .visibility import BIN_TOL, REL_TOL
 
-    grid, sides, frame, model = work.grid, work.sides, item.frame, work.model
+    grid, sides, frame = work.grid, work.sides, item.frame
     rows = len(item.pings) * len(sides)
-    maps = _range_maps(work, item, scene, sonar, local, casters, stats)
-    order = np.argsort(item.pings[:, 0], kind="stable")
-    tp = np.ascontiguousarray(item.pings[order, 0])
-    pings = np.ascontiguousarray(item.pings, dtype=np.float64)
-    travel = np.asarray(item.travel, dtype=np.float64)
-    params = np.zeros(cc.N_PARAMS)
-    params[cc.P_R_LIMIT] = model.r_limit
-    params[cc.P_SLACK] = _slack(work, item)
-    params[cc.P_U_CUT] = model.u_cut
-    params[cc.P_DEN] = float(travel[0]) * math.sqrt(1.0 - model.u_cut**2) - model.u_cut * _skew(
-        travel
-    )
-    params[cc.P_OFF] = item.off
-    params[cc.P_WAVELENGTH] = model.wavelength
-    params[cc.P_TILT] = sonar.tilt
-    params[cc.P_ORIGIN] = grid.origin
-    params[cc.P_STEP] = grid.step
-    params[cc.P_BIN_TOL] = BIN_TOL
-    params[cc.P_REL_TOL] = REL_TOL
-    flags = np.zeros(cc.N_FLAGS, dtype=np.int64)
-    flags[cc.F_PORT] = "port" in sides
-    flags[cc.F_STARBOARD] = "starboard" in sides
-    flags[cc.F_TWO_SIDES] = len(sides) == 2
-    flags[cc.F_LAMBERT] = model.law == "lambert"
-    if model.beam_h is not None:
-        flags[cc.F_BEAM_H] = cc.BEAM_GAUSSIAN if model.beam_h.kind == "gaussian" else cc.BEAM_SINC
-        params[cc.P_BEAM_WIDTH] = model.beam_h.width
-        params[cc.P_BEAM_CUT] = model.beam_h.cutoff
-    beam = sonar.beam
-    flags[cc.F_VERTICAL] = not beam.is_uniform
-    flags[cc.F_VISIBILITY] = maps is not None
-    flags[cc.F_JITTER] = work.jitter > 0
-    level = travel[1] == 0 and travel[2] == 0
-    flags[cc.F_LINE] = level and np.ptp(pings[:, 1]) == 0 and np.ptp(pings[:, 2]) == 0
-    flags[cc.F_ONE_ROLL] = np.ptp(item.roll) == 0
-    steps = np.diff(beam.angles)
-    flags[cc.F_UNIFORM_TABLE] = bool(np.all(np.abs(steps - steps[0]) <= 1e-9 * steps[0]))
-    empty = np.full((2, 2), np.inf, dtype=np.float32)
-    map_rows = np.zeros((2, cc.N_MAP))
-    map_ranges = [empty, empty]
-    for slot, side in enumerate(("port", "starboard")):
-        if maps is not None and side in maps.maps:
-            m = maps.maps[side]
-            map_ranges[slot] = np.ascontiguousarray(m.ranges, dtype=np.float32)
-            map_rows[slot] = (
-                m.t0,
-                m.dt,
-                m.h,
-                m.c,
-                m.alpha0,
-                m.rho0,
-                m.slope0,
-                m.rho_lo,
-                m.rho_hi,
-                m.columns,
-            )
-    seed_key = np.uint64(work.seed & 0xFFFFFFFFFFFFFFFF)
-    jitter_axes = np.ascontiguousarray(work.jitter * frame.axes, dtype=np.float64)
-    factor = _face_factor(work.surface.facet_area, work.surface.reflectivity, model)
-    table = np.ascontiguousarray(grid.kernel.table().T)  # (T, 2W): a term's taps together
     threads = _threads()
     accs = [np.zeros((rows, grid.n, 2)) for _ in range(threads)]  # a term's taps together
     counts = [np.zeros(cc.N_STATS) for _ in range(threads)]
-    roll = np.ascontiguousarray(item.roll, dtype=np.float64)
-
-    def run(part: Any, acc: np.ndarray, count: np.ndarray, faces: Any) -> None:
-        face, i, lo, length, base, slope = part
-        cc.render_runs(
-            face, i, lo, length, base, slope, work.surface.n_sub,
-            faces.normal, factor, faces.facet_area,
-            tp, order, pings, roll, travel,
-            params, flags, beam.angles, beam.values,
-            map_ranges[0], map_ranges[1], map_rows, sonar.range_bin,
-            jitter_axes, seed_key, table, grid.kernel.taps, acc, count,
-        )  # fmt: skip
-
-    jobs: list[Any] = []
+    factor = _face_factor(work.surface.facet_area, work.surface.reflectivity, work.model)
+    slots: dict[int, int] = {}
+    lock = threading.Lock()
     with _pool(threads) as pool:
-        for faces, ids, runs in generate_runs(
-            work.surface, frame.axes, frame.origin, item.bounds, work.chunk, frame.fan_axes
-        ):  # the next chunk's runs are clipped while the threads work on this one
-            parts = _split_runs(np.ascontiguousarray(ids[runs.tri]), runs, threads)
-            for job in jobs:  # thread n's accumulator takes one part at a time
+        chunks = generate_runs(
+            work.surface, frame.axes, frame.origin, item.bounds, _RUN_CHUNKS * work.chunk,
+            frame.fan_axes, row_block=_RUN_ROW_BLOCK,
+        )  # fmt: skip
+        first = pool.submit(next, chunks, None)  # clipped while the GL draws the range maps
+        maps = _range_maps(work, item, scene, sonar, local, casters, stats)
+        args = _compiled_arguments(work, item, sonar, maps)
+
+        def run(face: np.ndarray, runs: Any, lo: int, hi: int, faces: Any) -> None:
+            with lock:  # each pool thread deposits on its own accumulator
+                n = slots.setdefault(threading.get_ident(), len(slots))
+            cc.render_runs(
+                face[lo:hi], runs.i[lo:hi], runs.lo[lo:hi], runs.length[lo:hi],
+                runs.base[lo:hi], runs.slope[lo:hi], work.surface.n_sub,
+                faces.normal, factor, faces.facet_area, *args, accs[n], counts[n],
+            )  # fmt: skip
+
+        pending: list[Any] = []
+        chunk = first.result()
+        while chunk is not None:
+            faces, ids, runs = chunk
+            face = np.ascontiguousarray(ids[runs.tri])
+            for job in pending:
                 job.result()
-            jobs = [
-                pool.submit(run, part, accs[n], counts[n], faces) for n, part in enumerate(parts)
+            pending = [
+                pool.submit(run, face, runs, lo, hi, faces)
+                for lo, hi in _split_runs(runs.length, _RUN_CHUNKS * threads)
             ]
-        for job in jobs:
+            chunk = next(chunks, None)  # clipped while the threads work on this one
+        for job in pending:
             job.result()
     total = np.sum(counts, axis=0)
     if total[cc.S_OUTSIDE] > 0:
@@ -749,25 +776,14 @@ def _pool(threads: int) -> Any:
     return ThreadPoolExecutor(max_workers=threads, thread_name_prefix="coherent")
 
 
-def _split_runs(face: np.ndarray, runs: Any, parts: int) -> list[tuple]:
-    """The runs' arrays cut into ``parts`` pieces of about equal facet counts."""
-    cum = np.cumsum(runs.length)
-    cuts = np.searchsorted(cum, cum[-1] * np.arange(1, parts) / parts) if len(cum) else []
-    edges = [0, *[int(c) for c in cuts], len(face)]
-    out = []
-    for a, b in zip(edges[:-1], edges[1:], strict=True):
-        if b > a:
-            out.append(
-                (
-                    face[a:b],
-                    np.ascontiguousarray(runs.i[a:b], dtype=np.int64),
-                    np.ascontiguousarray(runs.lo[a:b], dtype=np.int64),
-                    np.ascontiguousarray(runs.length[a:b], dtype=np.int64),
-                    np.ascontiguousarray(runs.base[a:b], dtype=np.float64),
-                    np.ascontiguousarray(runs.slope[a:b], dtype=np.float64),
-                )
-            )
-    return out
+def _split_runs(length: np.ndarray, parts: int) -> list[tuple[int, int]]:
+    """Index ranges cutting runs of ``length`` facets into ``parts`` of about equal counts."""
+    if len(length) == 0:
+        return []
+    cum = np.cumsum(length)
+    cuts = np.searchsorted(cum, cum[-1] * np.arange(1, parts) / parts)
+    edges = [0, *[int(c) for c in cuts], len(length)]
+    return [(a, b) for a, b in zip(edges[:-1], edges[1:], strict=True) if b > a]
 
 
 def _range_maps(work, item, scene, sonar, local, casters, stats):

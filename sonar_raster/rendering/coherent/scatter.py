@@ -202,10 +202,12 @@ def generate_runs(
     bounds: np.ndarray,
     chunk: int,
     normal_axes: np.ndarray | None = None,
+    row_block: int = _ROW_BLOCK,
 ) -> Iterator[tuple[FaceTable, np.ndarray, Runs]]:
     """:func:`generate`'s facets as runs, not expanded: ``(faces, ids, runs)`` per chunk.
 
-    ``runs.tri`` indexes ``ids`` (face indices); ``faces`` is the same table for every chunk.
+    ``runs.tri`` indexes ``ids`` (face indices); ``faces`` is the same table for every chunk;
+    ``row_block``: subdivision rows clipped at once.
     """
     proj = project(surface.tri, origin, axes, _rotate)
     ids = np.flatnonzero(overlaps(proj, bounds))
@@ -213,7 +215,7 @@ def generate_runs(
         return
     normal = _rotate(surface.normal, axes if normal_axes is None else normal_axes)
     faces = FaceTable(normal, surface.facet_area, surface.reflectivity)
-    for runs in runs_in_box(proj, surface.n_sub, ids, bounds, row_block=_ROW_BLOCK, chunk=chunk):
+    for runs in runs_in_box(proj, surface.n_sub, ids, bounds, row_block=row_block, chunk=chunk):
         yield faces, ids, runs
 
 
