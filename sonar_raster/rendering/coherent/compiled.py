@@ -497,6 +497,14 @@ def render_runs(  # noqa: C901  # pragma: no cover - compiled
         np.empty((3, _SCATTERERS), dtype=np.int64),
         np.empty(_SCATTERERS),
     )
+    # the pings in travel order (tp): position, accumulator row, roll
+    sorted_pings = (
+        tp,
+        pings[order, 1].copy(),
+        pings[order, 2].copy(),
+        order * (2 if flags[F_TWO_SIDES] != 0 else 1),
+        roll[order].copy(),
+    )
     maps = (map_port, map_starboard)
     fill = np.zeros(2, dtype=np.int64)
     for q in range(len(run_face)):
@@ -542,8 +550,8 @@ def render_runs(  # noqa: C901  # pragma: no cover - compiled
             if n_s + 1 == _SCATTERERS:
                 _flush(
                     side, n_s + 1, s_t[side], s_x[side], s_v[side], s_key[side], s_cell[side],
-                    s_face[side], maps[side], maps_params[side], pairs,
-                    normal, factor, facet_area, tp, order, pings, roll, travel, params, flags,
+                    s_face[side], maps[side], maps_params[side], pairs, sorted_pings,
+                    normal, factor, facet_area, tp, travel, params, flags,
                     beam_angles, beam_values, range_bin, jitter_axes, table, taps, acc, stats,
                 )  # fmt: skip
                 fill[side] = 0
@@ -551,16 +559,16 @@ def render_runs(  # noqa: C901  # pragma: no cover - compiled
         if fill[side] > 0:
             _flush(
                 side, fill[side], s_t[side], s_x[side], s_v[side], s_key[side], s_cell[side],
-                s_face[side], maps[side], maps_params[side], pairs,
-                normal, factor, facet_area, tp, order, pings, roll, travel, params, flags,
+                s_face[side], maps[side], maps_params[side], pairs, sorted_pings,
+                normal, factor, facet_area, tp, travel, params, flags,
                 beam_angles, beam_values, range_bin, jitter_axes, table, taps, acc, stats,
             )  # fmt: skip
 
 
 @_jit
 def _flush(  # noqa: C901  # pragma: no cover - compiled
-    side, n, s_t, s_x, s_v, s_key, s_cell, s_face, ranges, m, pairs,
-    normal, factor, facet_area, tp, order, pings, roll, travel, params, flags,
+    side, n, s_t, s_x, s_v, s_key, s_cell, s_face, ranges, m, pairs, sorted_pings,
+    normal, factor, facet_area, tp, travel, params, flags,
     beam_angles, beam_values, range_bin, jitter_axes, table, taps, acc, stats,
 ):  # fmt: skip
     """Test, jitter and deposit a buffer of ``n`` facets of one side (0 port, 1 starboard)."""
@@ -591,15 +599,23 @@ def _flush(  # noqa: C901  # pragma: no cover - compiled
         visible[:n] = 1
     if flags[F_JITTER] != 0:
         _jitter(n, s_t, s_x, s_v, s_key, s_cell, jitter_axes)
+    g_fore, g_dx, g_dv = geometry[0], geometry[1], geometry[2]
+    g_nx, g_nv, g_nt, g_fac = geometry[3], geometry[4], geometry[5], geometry[6]
+    ping_t, ping_x, ping_v, ping_row, ping_roll = sorted_pings
+    tr0, tr1, tr2 = travel[0], travel[1], travel[2]
+    capacity = len(rows)
     n_p = 0
+    count = 0.0
+    area = 0.0
+    area2 = 0.0
     for i in range(n):
         if visible[i] == 0:
             continue
         face = s_face[i]
         a = facet_area[face]
-        stats[S_VISIBLE] += 1.0
-        stats[S_AREA] += a
-        stats[S_AREA2] += a * a
+        count += 1.0
+        area += a
+        area2 += a * a
         pt = s_t[i]
         px = s_x[i]
         pv = s_v[i]
@@ -609,36 +625,41 @@ def _flush(  # noqa: C901  # pragma: no cover - compiled
         hi = _first_above(tp, pt + reach, t0, inv_dt)
         if hi <= lo:
             continue
-        if n_p + hi - lo > len(rows):
+        if n_p + hi - lo > capacity:
             _terms(n_p, geometry, out, params, flags, n_table, half)
             _deposit(n_p, out, rows, gain, per_pair_gain, table, taps, acc, stats)
             n_p = 0
         fac = factor[face]
+        nx = normal[face, 1]
+        nv = normal[face, 2]
+        nt = normal[face, 0]
         dep0 = 0.0
         if vertical and line:
-            dep0 = atan2(-(pv - pings[0, 2]), abs(px - pings[0, 1]))
+            dep0 = atan2(-(pv - ping_v[0]), abs(px - ping_x[0]))
             if one_roll:
                 fac *= math.sqrt(
-                    _interp(dep0 - tilt - sign * roll[0], beam_angles, beam_values, uniform)
+                    _interp(dep0 - tilt - sign * ping_roll[0], beam_angles, beam_values, uniform)
                 )
         for s in range(lo, hi):
-            p = order[s]
-            dt = pt - pings[p, 0]
-            dx = px - pings[p, 1] + dt * travel[1]
-            dv = pv - pings[p, 2] + dt * travel[2]
-            geometry[0, n_p] = dt * travel[0]
-            geometry[1, n_p] = dx
-            geometry[2, n_p] = dv
-            geometry[3, n_p] = normal[face, 1]
-            geometry[4, n_p] = normal[face, 2]
-            geometry[5, n_p] = normal[face, 0]
-            geometry[6, n_p] = fac
-            rows[n_p] = p * (2 if two_sides else 1) + slot
+            dt = pt - ping_t[s]
+            dx = px - ping_x[s] + dt * tr1
+            dv = pv - ping_v[s] + dt * tr2
+            g_fore[n_p] = dt * tr0
+            g_dx[n_p] = dx
+            g_dv[n_p] = dv
+            g_nx[n_p] = nx
+            g_nv[n_p] = nv
+            g_nt[n_p] = nt
+            g_fac[n_p] = fac
+            rows[n_p] = ping_row[s] + slot
             if per_pair_gain:
                 dep = dep0 if line else atan2(-dv, abs(dx))
                 gain[n_p] = math.sqrt(
-                    _interp(dep - tilt - sign * roll[p], beam_angles, beam_values, uniform)
+                    _interp(dep - tilt - sign * ping_roll[s], beam_angles, beam_values, uniform)
                 )
             n_p += 1
+    stats[S_VISIBLE] += count
+    stats[S_AREA] += area
+    stats[S_AREA2] += area2
     _terms(n_p, geometry, out, params, flags, n_table, half)
     _deposit(n_p, out, rows, gain, per_pair_gain, table, taps, acc, stats)
