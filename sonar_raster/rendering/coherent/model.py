@@ -95,9 +95,9 @@ _MAP_ROW_BINS = 1.0
 #: about twice the terms made; 11.7 s estimated for 12.4 s measured at load 5.8).
 _COST_SCATTERER = 0.15e-6
 _COST_PAIR = 0.05e-6
-#: The compiled engine's speed over those (tools/bench_coherent.py, unloaded: 4.2x on the
-#: barrel, 3.3x on the rough seabed, both cores).
-_COMPILED_SPEEDUP = 3.5
+#: The compiled engine's speed over those (tools/bench_coherent.py, unloaded, both cores: the
+#: barrel's 20 pings estimated 1.4 s for 1.2 s measured; 3.3 s before the SIMD loops).
+_COMPILED_SPEEDUP = 8.0
 #: Scatterers beyond ``max_range`` + this many range bins are left out (their compressed main
 #: lobes still reach the last bins).
 RANGE_MARGIN_BINS = 3.0
