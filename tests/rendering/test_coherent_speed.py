@@ -58,7 +58,7 @@ def test_estimate_counts_the_scatterers_it_will_generate(shadow_scene, track):
 def test_a_job_over_an_hour_is_refused_in_one_line_before_any_work(shadow_scene, track):
     with pytest.raises(SonarRasterError) as err:
         render_coherent(
-            shadow_scene, SONAR, track, spacing_wavelengths=5e-4, seabed_spacing_wavelengths=5e-4
+            shadow_scene, SONAR, track, spacing_wavelengths=2e-4, seabed_spacing_wavelengths=2e-4
         )
     message = str(err.value)
     assert "\n" not in message
