@@ -16,7 +16,16 @@ Writes into DIR:
   ``hillshade.png`` of the elevation;
 - ``shadow.png``: the object side normalised by its seabed level, the detected highlight and
   shadow per ping, and the height from each ping's shadow;
+- ``bands.png``: the open seabed's level per ping (world vertical) and its along-track bands;
 - ``report.md`` / ``report.json``: every number below.
+
+Along-track bands on the open seabed: per ping and side, the median of the world elevation
+(``Z cos p`` minus the sensor depth, as in ``elevation.tif``) over the cells from 2 m ground
+range to the swath's end (on the object side without the wreck's cells, highlight to 2 m past
+its shadow); a band is that level minus its running median over ``--band-window`` metres of
+track (the seabed's own slope along track is not a band). Reported: the bands' std and the
+deepest and highest, and, for comparison, the same per-ping levels relative to the transducer,
+which follow the vehicle's altitude.
 
 Wreck height, two ways, on the object side (``--side``, starboard for the sample file):
 
@@ -48,10 +57,44 @@ from _common import parser
 from sonar_raster.cli.track import draw_waterfall, parse_pings
 from sonar_raster.errors import SonarRasterError
 from sonar_raster.inversion.shadows import find_shadows, object_pings
-from sonar_raster.inversion.xtf import georeference, geotiff_jobs, invert_xtf
+from sonar_raster.inversion.xtf import georeference, geotiff_jobs, invert_xtf, world_elevation
 from sonar_raster.io.commit import commit
 
 SEABED_BEYOND_M = 2.0
+#: Open seabed for the bands: from this ground range to the swath's end, metres.
+BAND_NEAR_M = 2.0
+
+
+def along_track_bands(
+    levels: np.ndarray, x: np.ndarray, exclude: np.ndarray, spacing: float, window_m: float
+) -> dict:
+    """Bands of one side: per-ping median level over the open seabed minus its running median.
+
+    ``levels`` (pings, cells) world elevation; ``exclude`` the cells left out (the wreck).
+    """
+    from scipy.ndimage import median_filter
+
+    z = np.where((x >= BAND_NEAR_M)[None, :] & ~exclude, levels, np.nan)
+    has = np.isfinite(z).any(axis=1)
+    level = np.full(len(z), np.nan)
+    level[has] = np.nanmedian(z[has], axis=1)
+    n = max(3, int(round(window_m / max(spacing, 1e-9))) | 1)  # odd
+    trend = np.full_like(level, np.nan)
+    trend[has] = median_filter(level[has], size=n, mode="nearest")
+    band = level - trend
+    ok = np.isfinite(band)
+    if not ok.any():
+        return {"pings": 0}
+    return {
+        "pings": int(ok.sum()),
+        "window_pings": n,
+        "std_m": float(np.std(band[ok])),
+        "deepest_m": float(np.min(band[ok])),
+        "highest_m": float(np.max(band[ok])),
+        "level_min_max_m": [float(np.min(level[ok])), float(np.max(level[ok]))],
+        "level": level,
+        "band": band,
+    }
 
 
 def elevation_height(
@@ -177,6 +220,59 @@ def _shadow_figure(path: Path, shadow: dict, wreck: np.ndarray, dr: float, side:
     plt.close(fig)
 
 
+def _bands(result, shadow: dict, wreck: np.ndarray, dr: float, window: float, png: Path) -> dict:
+    """:func:`along_track_bands` of each side, world vertical and relative to the transducer."""
+    import matplotlib.pyplot as plt
+
+    world = world_elevation(result)
+    spacing = result.navigation.along_track_spacing()
+    bands = {}
+    fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
+    for side, inv in result.sides.items():
+        exclude = np.zeros(inv.elevation.shape, dtype=bool)
+        for i in np.flatnonzero(wreck) if side == shadow["side"] else []:
+            h = inv.altitude[i]
+            x0 = math.sqrt(max((shadow["highlight"][i] * dr) ** 2 - h * h, 0.0))
+            x1 = math.sqrt(max((shadow["end"][i] * dr) ** 2 - h * h, 0.0)) + SEABED_BEYOND_M
+            exclude[i] = (inv.x >= x0) & (inv.x <= x1)
+        b = along_track_bands(world[side], inv.x, exclude, spacing, window)
+        rel = along_track_bands(inv.elevation, inv.x, exclude, spacing, window)
+        b["transducer_frame_std_m"] = float(np.nanstd(rel["level"] - np.nanmedian(rel["level"])))
+        b["transducer_frame_deepest_m"] = float(
+            np.nanmin(rel["level"] - np.nanmedian(rel["level"]))
+        )
+        bands[side] = b
+        axes[0].plot(b["level"], label=side)
+        axes[1].plot(b["band"], label=side)
+    axes[0].set_ylabel("open-seabed level, m")
+    axes[1].set_ylabel(f"band (minus {window:g} m running median), m")
+    axes[1].set_xlabel("ping")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+        ax.legend()
+    fig.savefig(png, dpi=90)
+    plt.close(fig)
+    return bands
+
+
+def _bands_text(bands: dict, window: float) -> str:
+    lines = []
+    for side, b in bands.items():
+        if not b.get("pings"):
+            lines.append(f"- {side}: no open seabed")
+            continue
+        lo, hi = b["level_min_max_m"]
+        lines.append(
+            f"- {side}: bands std **{b['std_m']:.3f} m**, deepest {b['deepest_m']:+.3f} m, "
+            f"highest {b['highest_m']:+.3f} m ({b['pings']} pings, running median over "
+            f"{b['window_pings']} pings ≈ {window:g} m); the level itself runs from {lo:.2f} to "
+            f"{hi:.2f} m. Relative to the transducer the same levels have std "
+            f"{b['transducer_frame_std_m']:.3f} m, deepest "
+            f"{b['transducer_frame_deepest_m']:+.3f} m (the vehicle's altitude changes)."
+        )
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = parser(__doc__)
     ap.add_argument("xtf")
@@ -184,10 +280,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--pings", help="ping range A:B (default: all)")
     ap.add_argument("--max-iter", type=int, default=40)
     ap.add_argument("--levels", type=int, default=3)
-    ap.add_argument("--method", default="profiles", choices=("profiles", "surface"),
-                    help="the inversion (surface: one surface for both sides, its own levels)")
+    ap.add_argument(
+        "--method",
+        default="profiles",
+        choices=("profiles", "surface"),
+        help="the inversion (surface: one surface for both sides, its own levels)",
+    )
     ap.add_argument("--side", default="starboard", choices=("port", "starboard"),
                         help="the side with the object")  # fmt: skip
+    ap.add_argument("--band-window", type=float, default=5.0,
+                    help="metres of track: the seabed's own level (5)")  # fmt: skip
     args = ap.parse_args(argv)
     import matplotlib
 
@@ -245,6 +347,7 @@ def main(argv: list[str] | None = None) -> int:
     found = find_shadows(slant, dr, track.altitude)
     pitch = np.nan_to_num(nav.pitch)
     shadow = {
+        "side": side,
         "highlight": found.highlight,
         "start": found.start,
         "end": found.end,
@@ -274,6 +377,7 @@ def main(argv: list[str] | None = None) -> int:
         if side in result.sides and h.size
         else {"height_m": math.nan}
     )
+    bands = _bands(result, shadow, wreck, dr, args.band_window, out / "bands.png")
     first = int(image.metadata["first_ping_index"])
     doc = {
         "file": str(args.xtf),
@@ -309,6 +413,9 @@ def main(argv: list[str] | None = None) -> int:
         "wreck_side": side,
         "wreck_height_from_shadow": from_shadow,
         "wreck_height_from_elevation": from_z,
+        "bands": {
+            s: {k: v for k, v in b.items() if k not in ("level", "band")} for s, b in bands.items()
+        },
         "preview": f"{side}/{preview}",
     }
     (out / "report.json").write_text(json.dumps(doc, indent=1))
@@ -346,6 +453,12 @@ Inversion ({args.levels} levels, at most {args.max_iter} iterations per level an
   {from_shadow["median_m"]:.2f} m, max {from_shadow["max_m"]:.2f} m).{_bound_note(from_shadow)}
 - From the recovered elevation map: **{from_z["height_m"]:.2f} m** (90th percentile of Z on the
   wreck minus the median of the seabed beyond its shadow).
+
+## Along-track bands on the open seabed
+
+{_bands_text(doc["bands"], args.band_window)}
+
+![bands](bands.png)
 """
     (out / "report.md").write_text(md)
     print(md)

@@ -494,6 +494,24 @@ def _affordable_factor(
     return max(1, factor)
 
 
+def world_elevation(result: XtfInversion) -> dict[str, np.ndarray]:
+    """Each side's elevation in the vertical of the world, metres, shape (pings, cells).
+
+    ``Z cos(pitch)`` (Z is in the pitched fan, relative to the transducer) minus the sensor's
+    depth (interpolated over pings without a fix), so relative to the sea surface; relative to
+    the transducer when the file has no depth.
+    """
+    nav = result.navigation
+    pitch = nav.filled("pitch")
+    ok = nav.valid & np.isfinite(nav.depth)
+    k = np.arange(len(nav.valid))
+    depth = np.interp(k, np.flatnonzero(ok), nav.depth[ok]) if ok.any() else nav.filled("depth")
+    shift = depth[:, None] if np.any(depth > 0) else 0.0
+    return {
+        side: inv.elevation * np.cos(pitch)[:, None] - shift for side, inv in result.sides.items()
+    }
+
+
 def georeference(
     result: XtfInversion, pixel: float | None = None, method: str = "footprint"
 ) -> Raster:
@@ -526,10 +544,7 @@ def georeference(
     east, north = robust_track(nav)
     heading = nav.filled_heading()
     pitch = nav.filled("pitch")
-    ok = nav.valid & np.isfinite(nav.depth)
-    k = np.arange(len(nav.valid))
-    depth = np.interp(k, np.flatnonzero(ok), nav.depth[ok]) if ok.any() else nav.filled("depth")
-    has_depth = bool(np.any(depth > 0))
+    levels = world_elevation(result)
     spacing = nav.along_track_spacing()
     first = next(iter(result.sides.values()))
     dx = float(first.x[1] - first.x[0])
@@ -543,8 +558,11 @@ def georeference(
     with_std = all(getattr(i, "elevation_std", None) is not None for i in result.sides.values())
     for side, inv in result.sides.items():
         e, n = ground_positions(east, north, heading, pitch, inv.x, inv.elevation, side)
-        z = inv.elevation * np.cos(pitch)[:, None] - (depth[:, None] if has_depth else 0.0)
-        layers = {"elevation": z, "reflectivity": inv.reflectivity, "mosaic": mosaic_values(inv)}
+        layers = {
+            "elevation": levels[side],
+            "reflectivity": inv.reflectivity,
+            "mosaic": mosaic_values(inv),
+        }
         if with_std:
             layers["elevation_var"] = (inv.elevation_std * np.cos(pitch)[:, None]) ** 2
         by_side[side] = (e, n, layers)
