@@ -22,10 +22,11 @@ Writes into DIR:
 Along-track bands on the open seabed: per ping and side, the median of the world elevation
 (``Z cos p`` minus the sensor depth, as in ``elevation.tif``) over the cells from 2 m ground
 range to the swath's end (on the object side without the wreck's cells, highlight to 2 m past
-its shadow); a band is that level minus its running median over ``--band-window`` metres of
-track (the seabed's own slope along track is not a band). Reported: the bands' std and the
-deepest and highest, and, for comparison, the same per-ping levels relative to the transducer,
-which follow the vehicle's altitude.
+its shadow); a band is that level minus a robust local straight line (LOWESS) over
+``--band-window`` metres of track (the seabed's own slope along track is not a band; a sharp
+change of slope reads as a small band). Reported: the bands' std and the deepest and highest,
+and, for comparison, the same per-ping levels relative to the transducer, which follow the
+vehicle's altitude.
 
 Wreck height, two ways, on the object side (``--side``, starboard for the sample file):
 
@@ -65,29 +66,55 @@ SEABED_BEYOND_M = 2.0
 BAND_NEAR_M = 2.0
 
 
+def local_line(level: np.ndarray, half: int, rounds: int = 3) -> np.ndarray:
+    """LOWESS of ``level`` (NaN = missing): a robust local straight line over ±``half`` samples.
+
+    Tricube weights by distance, bisquare weights by residual (6 median absolute residuals)
+    refitted ``rounds`` times; exact for a straight line, at the ends too. A band narrower than
+    the window is left in the residual; the seabed's slope is not.
+    """
+    n = len(level)
+    ok = np.isfinite(level)
+    fit = np.full(n, np.nan)
+    robust = np.ones(n)
+    for _ in range(rounds + 1):
+        for i in range(n):
+            j = np.arange(max(0, i - half), min(n, i + half + 1))
+            j = j[ok[j]]
+            if len(j) < 3:
+                continue
+            w = (1.0 - (np.abs(j - i) / (half + 1.0)) ** 3) ** 3 * robust[j]
+            if w.sum() <= 0:
+                continue
+            a = np.polyfit(j - i, level[j], 1, w=np.sqrt(w))
+            fit[i] = a[1]
+        resid = np.where(ok, level - fit, np.nan)
+        scale = 6.0 * np.nanmedian(np.abs(resid))
+        if not scale > 0:
+            break
+        robust = np.where(ok, np.clip(1.0 - (resid / scale) ** 2, 0.0, 1.0) ** 2, 0.0)
+    return fit
+
+
 def along_track_bands(
     levels: np.ndarray, x: np.ndarray, exclude: np.ndarray, spacing: float, window_m: float
 ) -> dict:
-    """Bands of one side: per-ping median level over the open seabed minus its running median.
+    """Bands of one side: per-ping median level over the open seabed minus its local line.
 
     ``levels`` (pings, cells) world elevation; ``exclude`` the cells left out (the wreck).
     """
-    from scipy.ndimage import median_filter
-
     z = np.where((x >= BAND_NEAR_M)[None, :] & ~exclude, levels, np.nan)
     has = np.isfinite(z).any(axis=1)
     level = np.full(len(z), np.nan)
     level[has] = np.nanmedian(z[has], axis=1)
-    n = max(3, int(round(window_m / max(spacing, 1e-9))) | 1)  # odd
-    trend = np.full_like(level, np.nan)
-    trend[has] = median_filter(level[has], size=n, mode="nearest")
-    band = level - trend
+    half = max(2, int(round(0.5 * window_m / max(spacing, 1e-9))))
+    band = level - local_line(level, half)
     ok = np.isfinite(band)
     if not ok.any():
         return {"pings": 0}
     return {
         "pings": int(ok.sum()),
-        "window_pings": n,
+        "window_pings": 2 * half + 1,
         "std_m": float(np.std(band[ok])),
         "deepest_m": float(np.min(band[ok])),
         "highest_m": float(np.max(band[ok])),
@@ -245,7 +272,7 @@ def _bands(result, shadow: dict, wreck: np.ndarray, dr: float, window: float, pn
         axes[0].plot(b["level"], label=side)
         axes[1].plot(b["band"], label=side)
     axes[0].set_ylabel("open-seabed level, m")
-    axes[1].set_ylabel(f"band (minus {window:g} m running median), m")
+    axes[1].set_ylabel(f"band (minus a {window:g} m local line), m")
     axes[1].set_xlabel("ping")
     for ax in axes:
         ax.grid(alpha=0.3)
@@ -264,9 +291,9 @@ def _bands_text(bands: dict, window: float) -> str:
         lo, hi = b["level_min_max_m"]
         lines.append(
             f"- {side}: bands std **{b['std_m']:.3f} m**, deepest {b['deepest_m']:+.3f} m, "
-            f"highest {b['highest_m']:+.3f} m ({b['pings']} pings, running median over "
-            f"{b['window_pings']} pings ≈ {window:g} m); the level itself runs from {lo:.2f} to "
-            f"{hi:.2f} m. Relative to the transducer the same levels have std "
+            f"highest {b['highest_m']:+.3f} m ({b['pings']} pings, against a robust local line "
+            f"over {b['window_pings']} pings ≈ {window:g} m); the level itself runs from "
+            f"{lo:.2f} to {hi:.2f} m. Relative to the transducer the same levels have std "
             f"{b['transducer_frame_std_m']:.3f} m, deepest "
             f"{b['transducer_frame_deepest_m']:+.3f} m (the vehicle's altitude changes)."
         )
@@ -345,7 +372,7 @@ def main(argv: list[str] | None = None) -> int:
     side = args.side
     slant = image.sides[side].astype(np.float64) ** 2  # intensity, as inverted
     found = find_shadows(slant, dr, track.altitude)
-    pitch = np.nan_to_num(nav.pitch)
+    pitch = nav.filled("pitch")
     shadow = {
         "side": side,
         "highlight": found.highlight,

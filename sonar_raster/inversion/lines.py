@@ -267,12 +267,9 @@ def _file_track(nav: Any, crs: str | None, path: Any) -> dict[str, Any]:
 
         e, n = transform(nav.crs, crs, east.tolist(), north.tolist())
         east, north = np.asarray(e), np.asarray(n)
-    ok = nav.valid & np.isfinite(nav.depth)
-    k = np.arange(len(nav.valid))
-    depth = np.interp(k, np.flatnonzero(ok), nav.depth[ok]) if ok.any() else nav.filled("depth")
     return {
         "east": east, "north": north, "heading": nav.filled_heading(),
-        "pitch": nav.filled("pitch"), "depth": np.maximum(depth, 0.0), "crs": crs,
+        "pitch": nav.filled("pitch"), "depth": np.maximum(nav.filled("depth"), 0.0), "crs": crs,
     }  # fmt: skip
 
 

@@ -503,9 +503,7 @@ def world_elevation(result: XtfInversion) -> dict[str, np.ndarray]:
     """
     nav = result.navigation
     pitch = nav.filled("pitch")
-    ok = nav.valid & np.isfinite(nav.depth)
-    k = np.arange(len(nav.valid))
-    depth = np.interp(k, np.flatnonzero(ok), nav.depth[ok]) if ok.any() else nav.filled("depth")
+    depth = nav.filled("depth")
     shift = depth[:, None] if np.any(depth > 0) else 0.0
     return {
         side: inv.elevation * np.cos(pitch)[:, None] - shift for side, inv in result.sides.items()

@@ -640,12 +640,16 @@ class XtfNavigation:
         return np.mod(np.interp(np.arange(len(ok)), idx, unwrapped), 2 * math.pi)
 
     def filled(self, name: str) -> np.ndarray:
-        """``roll``, ``pitch``, ``depth`` or ``altitude``, NaN interpolated from neighbours.
+        """``roll``, ``pitch``, ``depth`` or ``altitude``, with gaps interpolated from neighbours.
 
-        0 where no ping has a value.
+        A gap is NaN or a ping without navigation (a blank record's zeros are no attitude or
+        depth). Pings without navigation keep their own values when no ping has both; 0 where
+        no ping has a value.
         """
         values = getattr(self, name)
-        ok = np.isfinite(values)
+        ok = np.isfinite(values) & self.valid
+        if not ok.any():
+            ok = np.isfinite(values)
         if not ok.any():
             return np.zeros_like(values)
         return np.interp(np.arange(len(values)), np.flatnonzero(ok), values[ok])
@@ -657,13 +661,7 @@ class XtfNavigation:
         without navigation take interpolated positions, depths and headings.
         """
         east, north = self.projected()
-        ok = self.valid & np.isfinite(self.depth)
-        depth = (
-            np.interp(np.arange(len(ok)), np.flatnonzero(ok), self.depth[ok])
-            if ok.any()
-            else self.filled("depth")
-        )
-        pos = np.stack([east - origin[0], north - origin[1], -depth], axis=1)
+        pos = np.stack([east - origin[0], north - origin[1], -self.filled("depth")], axis=1)
         return Trajectory(pos, self.filled_heading(), self.filled("roll"), self.filled("pitch"))
 
     def along_track_spacing(self) -> float:

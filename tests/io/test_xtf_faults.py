@@ -6,6 +6,7 @@ from __future__ import annotations
 import ctypes
 import logging
 import math
+from dataclasses import replace
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -266,6 +267,29 @@ def test_georeference_sizes_the_raster_from_the_track_not_a_stray_fix():
     reference = georeference(_result(_straight_track(60)), pixel=0.5)
     assert raster.layers["elevation"].shape == reference.layers["elevation"].shape
     np.testing.assert_array_equal(raster.layers["mosaic"], reference.layers["mosaic"])
+
+
+def test_a_blank_record_without_navigation_takes_its_neighbours_attitude_and_depth():
+    """The sample file's first ping: no fix, and depth, pitch and roll all 0 while the vehicle
+    is at 14 m and pitched 20 degrees; its zeros would put that ping's seabed 0.9 m off
+    (world elevation ``Z cos p - depth``). Gaps are interpolated from pings with navigation."""
+    from sonar_raster.inversion.xtf import world_elevation
+
+    nav = replace(
+        _straight_track(10),  # (whose heading, roll and pitch share one array)
+        pitch=np.full(10, np.radians(-20.0)),
+        roll=np.full(10, 0.05),
+        depth=np.full(10, 14.0),
+    )
+    nav.valid[0] = False
+    nav.pitch[0] = nav.roll[0] = nav.depth[0] = 0.0
+    assert nav.filled("pitch")[0] == pytest.approx(np.radians(-20.0))
+    assert nav.filled("roll")[0] == pytest.approx(0.05)
+    assert nav.filled("depth")[0] == pytest.approx(14.0)
+    level = world_elevation(_result(nav))["port"]
+    np.testing.assert_allclose(level, level[1, 0])  # every ping, the first too, at one level
+    nav.valid[:] = False  # no ping has a fix: the file's own values
+    assert nav.filled("depth")[0] == 0.0 and nav.filled("depth")[1] == 14.0
 
 
 def test_grid_refuses_a_huge_raster_with_one_line():
