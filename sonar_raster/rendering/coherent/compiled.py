@@ -507,6 +507,7 @@ def render_runs(  # noqa: C901  # pragma: no cover - compiled
     )
     maps = (map_port, map_starboard)
     fill = np.zeros(2, dtype=np.int64)
+    in_reach = 0.0  # facets in range reach (a register, not a store per facet)
     for q in range(len(run_face)):
         face = run_face[q]
         nx = normal[face, 1]
@@ -531,7 +532,7 @@ def render_runs(  # noqa: C901  # pragma: no cover - compiled
             rho = math.sqrt(x * x + v * v)
             if not rho < r_limit + slack:
                 continue
-            stats[S_SCATTERERS] += 1.0
+            in_reach += 1.0
             if not x * nx + v * nv < 0:
                 continue
             reach = (rho + slack) * u_cut / den + slack + 1e-9
@@ -555,6 +556,7 @@ def render_runs(  # noqa: C901  # pragma: no cover - compiled
                     beam_angles, beam_values, range_bin, jitter_axes, table, taps, acc, stats,
                 )  # fmt: skip
                 fill[side] = 0
+    stats[S_SCATTERERS] += in_reach
     for side in range(2):
         if fill[side] > 0:
             _flush(
