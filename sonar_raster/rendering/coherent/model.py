@@ -720,11 +720,12 @@ def _render_block_compiled(
         first = pool.submit(next, chunks, None)  # clipped while the GL draws the range maps
         maps = _range_maps(work, item, scene, sonar, local, casters, stats)
         args = _compiled_arguments(work, item, sonar, maps)
+        render_runs: Any = cc.render_runs  # a numba dispatcher: no signature to check
 
         def run(face: np.ndarray, runs: Any, lo: int, hi: int, faces: Any) -> None:
             with lock:  # each pool thread deposits on its own accumulator
                 n = slots.setdefault(threading.get_ident(), len(slots))
-            cc.render_runs(
+            render_runs(
                 face[lo:hi], runs.i[lo:hi], runs.lo[lo:hi], runs.length[lo:hi],
                 runs.base[lo:hi], runs.slope[lo:hi], work.surface.n_sub,
                 faces.normal, factor, faces.facet_area, *args, accs[n], counts[n],
