@@ -214,9 +214,13 @@ class Trajectory:
     def _fits(self, start: int, end: int, tolerance: float, angle: float) -> bool:
         p = self.positions[start:end]
         k = np.arange(end - start)[:, None] / max(end - start - 1, 1)
-        line = p[0] + k * (p[-1] - p[0])
+        delta = p[-1] - p[0]
+        line = p[0] + k * delta
         if np.max(np.linalg.norm(p - line, axis=1)) > tolerance:
             return False
+        dist = float(np.linalg.norm(delta))
+        if dist > 1e-9 and math.hypot(delta[0], delta[1]) < 1e-6 * dist:
+            return False  # a vertical run (a ping repeating its neighbour's fix): no fan plane
         dh = np.angle(np.exp(1j * (self.headings[start:end] - self.headings[start])))
         if np.ptp(dh) > angle or np.ptp(self.pitch[start:end]) > angle:
             return False

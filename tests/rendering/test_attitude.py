@@ -118,6 +118,19 @@ def test_heading_far_off_the_course_is_refused():
         traj.segments(0.01)
 
 
+def test_a_ping_repeating_its_neighbours_fix_at_another_depth_is_its_own_segment():
+    """The sample XTF's first record has no fix: it takes the next ping's position, and its
+    own altitude puts it 2.5 m higher. With the same attitude as the next ping, the two made a
+    vertical segment, which has no fan plane and stopped the render."""
+    traj = _track(8)
+    pos = traj.positions.copy()
+    pos[0, :2] = pos[1, :2]
+    pos[0, 2] += 2.5
+    moved = Trajectory(pos, traj.headings, traj.roll, traj.pitch)
+    segments = moved.segments(0.01)
+    assert segments[0].count == 1 and sum(s.count for s in segments) == 8
+
+
 def test_scene_file_sets_crab_pitch_and_roll(tmp_path):
     from sonar_raster.scenes.description import load_scene_file
 
