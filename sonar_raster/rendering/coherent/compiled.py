@@ -1,4 +1,4 @@
-"""The coherent model's per-scatterer work as one compiled loop (numba).
+"""The coherent model's per-scatterer work as compiled loops over small buffers (numba).
 
 :func:`render_runs` takes runs of facets (:class:`~sonar_raster.rendering.patches.Runs`, not
 yet expanded) and does for each facet what :mod:`.model` does with numpy arrays, without

@@ -325,9 +325,9 @@ def render_coherent(
     force : bool
         Run even when the estimate exceeds an hour or the machine's memory.
     engine : {"auto", "compiled", "numpy"}
-        "compiled": one compiled loop per facet (:mod:`.compiled`; needs ``method="fast"`` and
-        ``visibility="depth"``), "numpy": array passes; "auto" (default): compiled where it
-        applies. The two give the same image to ~1e-6.
+        "compiled": compiled loops over buffers of facets (:mod:`.compiled`; needs
+        ``method="fast"`` and ``visibility="depth"``), "numpy": array passes; "auto" (default):
+        compiled where it applies. The two give the same image to ~1e-6.
 
     Returns
     -------
