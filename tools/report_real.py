@@ -96,17 +96,18 @@ def local_line(level: np.ndarray, half: int, rounds: int = 3) -> np.ndarray:
     return fit
 
 
-def along_track_bands(
-    levels: np.ndarray, x: np.ndarray, exclude: np.ndarray, spacing: float, window_m: float
-) -> dict:
-    """Bands of one side: per-ping median level over the open seabed minus its local line.
-
-    ``levels`` (pings, cells) world elevation; ``exclude`` the cells left out (the wreck).
-    """
+def open_seabed_level(levels: np.ndarray, x: np.ndarray, exclude: np.ndarray) -> np.ndarray:
+    """Per ping, the median of ``levels`` (pings, cells) from ``BAND_NEAR_M`` ground range on,
+    ``exclude``'s cells left out (the wreck); NaN where a ping has none."""
     z = np.where((x >= BAND_NEAR_M)[None, :] & ~exclude, levels, np.nan)
     has = np.isfinite(z).any(axis=1)
     level = np.full(len(z), np.nan)
     level[has] = np.nanmedian(z[has], axis=1)
+    return level
+
+
+def along_track_bands(level: np.ndarray, spacing: float, window_m: float) -> dict:
+    """Bands of one side: its open-seabed level per ping minus a robust local line."""
     half = max(2, int(round(0.5 * window_m / max(spacing, 1e-9))))
     band = level - local_line(level, half)
     ok = np.isfinite(band)
@@ -262,12 +263,11 @@ def _bands(result, shadow: dict, wreck: np.ndarray, dr: float, window: float, pn
             x0 = math.sqrt(max((shadow["highlight"][i] * dr) ** 2 - h * h, 0.0))
             x1 = math.sqrt(max((shadow["end"][i] * dr) ** 2 - h * h, 0.0)) + SEABED_BEYOND_M
             exclude[i] = (inv.x >= x0) & (inv.x <= x1)
-        b = along_track_bands(world[side], inv.x, exclude, spacing, window)
-        rel = along_track_bands(inv.elevation, inv.x, exclude, spacing, window)
-        b["transducer_frame_std_m"] = float(np.nanstd(rel["level"] - np.nanmedian(rel["level"])))
-        b["transducer_frame_deepest_m"] = float(
-            np.nanmin(rel["level"] - np.nanmedian(rel["level"]))
-        )
+        b = along_track_bands(open_seabed_level(world[side], inv.x, exclude), spacing, window)
+        about = open_seabed_level(inv.elevation, inv.x, exclude)  # relative to the transducer
+        about -= np.nanmedian(about)
+        b["transducer_frame_std_m"] = float(np.nanstd(about))
+        b["transducer_frame_deepest_m"] = float(np.nanmin(about))
         bands[side] = b
         axes[0].plot(b["level"], label=side)
         axes[1].plot(b["band"], label=side)

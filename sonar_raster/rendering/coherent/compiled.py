@@ -228,26 +228,22 @@ def _visible(n, t, x, v, ranges, m, sign, range_bin, rel_tol, bin_tol, cells, re
         out[k] = 1 if reach[k] <= far * (1.0 + rel_tol) + tol else 0
 
 
-@intrinsic
-def _float_bits(typingctx, x):  # pragma: no cover - compiled
-    """The IEEE-754 bits of a float64 as uint64 (a bit cast)."""
-    sig = types.uint64(types.float64)
+def _bit_cast(source, target):  # pragma: no cover - compiled
+    """A compiled function giving the ``target`` value with the bits of a ``source`` value."""
 
-    def codegen(context, builder, signature, args):
-        return builder.bitcast(args[0], context.get_value_type(types.uint64))
+    @intrinsic
+    def cast(typingctx, x):
+        def codegen(context, builder, signature, args):
+            return builder.bitcast(args[0], context.get_value_type(target))
 
-    return sig, codegen
+        return target(source), codegen
+
+    return cast
 
 
-@intrinsic
-def _bits_float(typingctx, x):  # pragma: no cover - compiled
-    """The float64 with the IEEE-754 bits of a uint64 (a bit cast)."""
-    sig = types.float64(types.uint64)
-
-    def codegen(context, builder, signature, args):
-        return builder.bitcast(args[0], context.get_value_type(types.float64))
-
-    return sig, codegen
+#: IEEE-754 bits of a float64 as uint64, and back.
+_float_bits = _bit_cast(types.float64, types.uint64)
+_bits_float = _bit_cast(types.uint64, types.float64)
 
 
 @_jit
@@ -400,26 +396,6 @@ def _deposit(n, out, rows, gain, per_pair, table, taps, acc, stats):  # pragma: 
         stats[S_PAIRS] += 1.0
         cell_t = int(o_cell[k])
         pos = o_pos[k]
-        if taps == 6:  # unrolled: the compiler pairs the real and imaginary updates
-            w0 = table[cell_t, 0] + pos * table[cell_t, 6]
-            w1 = table[cell_t, 1] + pos * table[cell_t, 7]
-            w2 = table[cell_t, 2] + pos * table[cell_t, 8]
-            w3 = table[cell_t, 3] + pos * table[cell_t, 9]
-            w4 = table[cell_t, 4] + pos * table[cell_t, 10]
-            w5 = table[cell_t, 5] + pos * table[cell_t, 11]
-            acc[row, first, 0] += w0 * re
-            acc[row, first, 1] += w0 * im
-            acc[row, first + 1, 0] += w1 * re
-            acc[row, first + 1, 1] += w1 * im
-            acc[row, first + 2, 0] += w2 * re
-            acc[row, first + 2, 1] += w2 * im
-            acc[row, first + 3, 0] += w3 * re
-            acc[row, first + 3, 1] += w3 * im
-            acc[row, first + 4, 0] += w4 * re
-            acc[row, first + 4, 1] += w4 * im
-            acc[row, first + 5, 0] += w5 * re
-            acc[row, first + 5, 1] += w5 * im
-            continue
         for q in range(taps):
             w = table[cell_t, q] + pos * table[cell_t, taps + q]
             acc[row, first + q, 0] += w * re

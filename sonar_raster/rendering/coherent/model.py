@@ -695,7 +695,7 @@ def _render_block_compiled(
     casters: dict[str, Any],
     stats: _Stats,
 ) -> np.ndarray:
-    """:func:`_render_block` with the per-facet loop of :mod:`.compiled`, on every core.
+    """:func:`_render_block` with the compiled loops of :mod:`.compiled`, on every core.
 
     Runs are clipped in chunks (the first while the GL draws the range maps, the next while
     the threads work on the last); each chunk is cut into parts of about equal facet counts
