@@ -320,6 +320,24 @@ def test_freeing_the_reflectivity_widens_the_elevation_uncertainty():
     assert min(ratio) > 1.05, ratio
 
 
+def test_the_uncertainty_solves_every_sample_to_its_tolerance():
+    """The Laplace draws (all samples solved together by block conjugate gradients on Z and
+    log R) equal the direct solve of the precision to the solver's tolerance, column by column,
+    and their spread is the one the precision implies."""
+    problem, p, _ = _problem(3, shadows=False)
+    h, rhs = solve.laplace_draws(problem, p, 400)
+    x = solve._symmetric_solver(h, problem.nz)(rhs)
+    exact = np.linalg.solve(h.toarray(), rhs)
+    error = np.linalg.norm(x - exact, axis=0) / np.linalg.norm(exact, axis=0)
+    assert error.max() < 0.05, error.max()
+    residual = np.linalg.norm(h @ x - rhs, axis=0) / np.linalg.norm(rhs, axis=0)
+    assert residual.max() < 1e-3, residual.max()
+    # the draws' covariance is H⁻¹: their Z variances to the 400 samples' accuracy (~7 %)
+    covariance = np.linalg.inv(h.toarray())
+    ratio = np.var(exact[: problem.nz], axis=1) / np.diag(covariance)[: problem.nz]
+    assert abs(np.median(ratio) - 1.0) < 0.05, np.median(ratio)
+
+
 def test_nearest_ping_within_a_gap():
     found = np.array([0, 1, 0, 0, 1, 0, 0, 0, 0, 1, 0], bool)
     assert solve._nearest_within(found, 3).tolist() == [-1, 1, 1, 4, 4, -1, -1, -1, -1, 9, -1]
