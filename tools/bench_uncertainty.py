@@ -9,9 +9,10 @@ size and structure are the fit's, their values need not be its optimum):
 * baseline (the code before 2026-11-27): the diagonal blocks' LU factors one after the other,
   then ``scipy.sparse.linalg.cg`` on one sample at a time, each iteration one triangular solve
   per block and right-hand side;
-* new (``surface.solve._symmetric_solver``): the two factorisations in two threads, then
-  conjugate gradients on every sample side by side (one sparse product and one multi-right-hand-
-  side triangular solve per iteration).
+* new (``surface.solve._symmetric_solver``): incomplete LU factors of the two blocks
+  (``BLOCK_ILU``) made in two threads, then conjugate gradients on every sample side by side
+  (one sparse product and one multi-right-hand-side triangular solve per iteration), to the
+  same tolerance, so the draws agree to about the tolerance (not to rounding).
 
 Rows: Z and log R together (what ``fit_lines`` uses) and Z alone (``reflectivity=False``: one
 LU, then its solves). Wall seconds, best of ``--repeats``; the difference column is the largest
