@@ -162,28 +162,33 @@ def fit_beam(real: RealPass, altitudes: np.ndarray, window: slice, footprint: bo
 SHADOW_ROWS = (190, 340)
 SHADOW_BINS = (380, 600)
 BESIDE_BINS = (650, 900)
-#: A wreck-like block for the simulation: along-track rows, slant bin of its near face, size (m).
-WRECK_BLOCK = {"rows": (195, 335), "near_bin": 390, "across_m": 2.0, "height_m": 1.5}
+#: A wreck-like hull for the simulation: along-track rows, slant bin of its near side, beam
+#: and height (m). The height is the real wreck's from its shadow (1.17 m,
+#: ``tools/report_real.py``); the length spans the rows where the file shows it.
+WRECK_HULL = {"rows": (195, 335), "near_bin": 390, "beam_m": 4.0, "height_m": 1.2}
 
 
-def wreck_block(real: RealPass, altitudes: np.ndarray):
-    """A box standing where the real wreck stands (starboard), casting a shadow of its size."""
+def wreck_hull(real: RealPass, altitudes: np.ndarray):
+    """An upright hull standing where the real wreck stands (starboard): the upper half of an
+    ellipsoid (length, beam, twice the height), its lower half pressed just under the seabed."""
+    import trimesh
+
     from sonar_raster.scene import MeshPart
-    from sonar_raster.scenes.objects import box
 
-    rows, block = WRECK_BLOCK["rows"], WRECK_BLOCK
+    rows, hull = WRECK_HULL["rows"], WRECK_HULL
     h = float(np.median(altitudes[rows[0] : rows[1]]))
-    r = (block["near_bin"] + 0.5) * real.range_bin
+    r = (hull["near_bin"] + 0.5) * real.range_bin
     x0 = math.sqrt(max(r**2 - h**2, 1.0))
     length = (rows[1] - rows[0]) * real.ping_spacing
-    vertices, faces = box((block["across_m"], length, block["height_m"]))
-    centre = [x0 + block["across_m"] / 2, (rows[0] + rows[1]) / 2 * real.ping_spacing, 0.0]
-    centre[2] = block["height_m"] / 2
-    return MeshPart(np.asarray(vertices) + centre, np.asarray(faces), 0.9, "wreck block")
+    sphere = trimesh.creation.icosphere(subdivisions=4)
+    v = np.asarray(sphere.vertices) * [hull["beam_m"] / 2, length / 2, hull["height_m"]]
+    v[:, 2] = np.maximum(v[:, 2], -0.05)  # the buried half: under the seabed, hidden by it
+    v += [x0 + hull["beam_m"] / 2, (rows[0] + rows[1]) / 2 * real.ping_spacing, 0.0]
+    return MeshPart(v, np.asarray(sphere.faces), 0.9, "wreck hull")
 
 
 def simulate(real: RealPass, altitudes: np.ndarray, args: argparse.Namespace, beam, tilt):
-    """Render a flat sandy seabed (and a wreck-like block) along the real altitudes with the
+    """Render a flat sandy seabed (and a wreck-like hull) along the real altitudes with the
     Marine Sonic preset's sonar at the file's range and bins, then apply the preset's effects
     (``--along-beam-deg``/``--range-resolution``/``--noise-db`` replace its figures)."""
     from sonar_raster import Trajectory, apply_effects, build_scene
@@ -218,7 +223,7 @@ def simulate(real: RealPass, altitudes: np.ndarray, args: argparse.Namespace, be
         [np.zeros(n_pings), np.arange(n_pings) * real.ping_spacing, heights], axis=1
     )
     traj = Trajectory(positions, np.zeros(n_pings), roll, pitch)
-    scene = build_scene([seabed, wreck_block(real, altitudes)])
+    scene = build_scene([seabed, wreck_hull(real, altitudes)])
     raw = render_raster(scene, sonar, traj)  # pitched and rolled fans unless --level
     fx = replace(p.effects(), ping_spacing_m=real.ping_spacing)
     for name, value in (
