@@ -670,7 +670,7 @@ def _block_cg(
     d = z.copy()
     rz = np.einsum("ij,ij->j", r, z)
     for _ in range(maxiter):
-        running = np.linalg.norm(r, axis=0) >= goal
+        running = np.linalg.norm(r, axis=0) > goal  # a zero column is solved by 0
         if not running.any():
             break
         live: slice | np.ndarray = slice(None) if running.all() else np.flatnonzero(running)
