@@ -6,6 +6,7 @@ Also the Laplace uncertainty of Z.
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -177,6 +178,7 @@ def fit_lines(
     list of SurfaceFit
         One per line, in order.
     """
+    start = time.perf_counter()
     prepared, frame, grids = _setup(lines, looks, z_knot, r_knot, levels)
     params: np.ndarray | None = None
     previous: Problem | None = None
@@ -190,17 +192,35 @@ def fit_lines(
         else:
             params = _transfer(previous, params, problem)
         previous = problem
+        step = None
+        if progress is not None:
+            step = partial(_report_step, progress, f"level 1/{f}", start)
         if GAUSS_NEWTON_STEPS:
-            params, value, count = _gauss_newton(problem, params, GAUSS_NEWTON_STEPS)
+            params, value, count = _gauss_newton(problem, params, GAUSS_NEWTON_STEPS, step)
         else:
             params, value, count = _minimise(problem, params, max_iter)
         energies.append(value)
         evaluations.append(count)
         if progress is not None:
-            progress(f"level 1/{f}: E {value:.6g} after {count} evaluations")
+            progress(
+                f"level 1/{f}: E {value:.6g} after {count} evaluations"
+                f" ({time.perf_counter() - start:.0f} s)"
+            )
     assert params is not None and previous is not None
+    if uncertainty and progress is not None:
+        progress(f"uncertainty of Z: 32 samples of {previous.nz + previous.nr} knots")
     std = elevation_std(previous, params) if uncertainty else {}
+    if progress is not None:
+        progress(f"done in {time.perf_counter() - start:.0f} s")
     return _results(previous, params, frame, std, energies, evaluations)
+
+
+def _report_step(
+    progress: Progress, level: str, start: float, k: int, steps: int, value: float
+) -> None:
+    """One progress line after Gauss-Newton step ``k`` of ``steps`` at a level."""
+    elapsed = time.perf_counter() - start
+    progress(f"{level}: Gauss-Newton step {k}/{steps}, E {value:.6g} ({elapsed:.0f} s)")
 
 
 def _setup(lines, looks, z_knot, r_knot, levels):
@@ -791,7 +811,12 @@ def _gn_matvec(problem: Problem, lhs: sparse.csc_matrix, v: np.ndarray) -> np.nd
     return out
 
 
-def _gauss_newton(problem: Problem, p: np.ndarray, steps: int) -> tuple:
+def _gauss_newton(
+    problem: Problem,
+    p: np.ndarray,
+    steps: int,
+    report: Callable[[int, int, float], None] | None = None,
+) -> tuple:
     """Alternate Gauss-Newton steps on the Z knots with L-BFGS on R and Φ.
 
     Each Z step solves ``(H + H_line + μ D) δ = −g`` by conjugate gradients preconditioned with
@@ -805,7 +830,7 @@ def _gauss_newton(problem: Problem, p: np.ndarray, steps: int) -> tuple:
     free[nz:] = True
     value, grad = problem(p)
     count, damping = 1, 1e-3
-    for _ in range(int(steps)):
+    for k in range(int(steps)):
         h = _fisher_z(problem, p)
         diag = h.diagonal()
         lhs = (h + sparse.diags(damping * diag + 1e-12 * diag.mean())).tocsc()
@@ -826,4 +851,6 @@ def _gauss_newton(problem: Problem, p: np.ndarray, steps: int) -> tuple:
         p, value, n = _minimise(problem, p, INNER_ITERATIONS, free)
         count += n
         grad = problem(p)[1]
+        if report is not None:
+            report(k + 1, int(steps), value)
     return p, value, count
