@@ -392,3 +392,28 @@ def test_shadow_start_skips_pings_without_a_first_return():
     raised = solve._shadow_start(problem)[0]
     assert whole.max() == pytest.approx(BOX[2], abs=0.1)
     assert raised.max() == pytest.approx(whole.max(), abs=0.05)
+
+
+def test_the_fit_reports_every_gauss_newton_step():
+    """A long fit says where it is: one line per Gauss-Newton step of each level, then the
+    uncertainty's size, then the total time."""
+    rng = np.random.default_rng(0)
+    pings, bins, rb = 12, 120, 0.05
+    image = rng.gamma(1.0, 1.0, (pings, bins)) * (np.arange(bins) * rb > 3.0)
+    lines: list[str] = []
+    surface.fit_surface(
+        {"port": image},
+        rb,
+        ping_spacing=0.1,
+        altitude=np.full(pings, 3.0),
+        levels=2,
+        progress=lines.append,
+    )
+    steps = solve.GAUSS_NEWTON_STEPS
+    for level in ("level 1/2", "level 1/1"):
+        found = [x for x in lines if x.startswith(f"{level}: Gauss-Newton step")]
+        assert [x.split("step ")[1].split(",")[0] for x in found] == [
+            f"{k}/{steps}" for k in range(1, steps + 1)
+        ]
+    assert any(x.startswith("uncertainty of Z") for x in lines)
+    assert lines[-1].startswith("done in")
