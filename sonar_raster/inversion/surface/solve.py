@@ -689,19 +689,30 @@ def _block_cg(
     z = precondition(r)
     d = z.copy()
     rz = np.einsum("ij,ij->j", r, z)
+    live = np.arange(b.shape[1])  # the columns still running; r, d, rz, goal hold only those
     for _ in range(maxiter):
         running = np.linalg.norm(r, axis=0) > goal  # a zero column is solved by 0
-        if not running.any():
+        if not running.all():  # drop the finished columns once, not on every iteration
+            live, r, d, rz, goal = (
+                live[running],
+                r[:, running],
+                d[:, running],
+                rz[running],
+                goal[running],
+            )
+        if live.size == 0:
             break
-        live: slice | np.ndarray = slice(None) if running.all() else np.flatnonzero(running)
-        hd = np.asarray(h @ d[:, live])
-        alpha = rz[live] / np.einsum("ij,ij->j", d[:, live], hd)
-        x[:, live] += alpha * d[:, live]
-        r[:, live] -= alpha * hd
-        z = precondition(r[:, live])
-        rz_new = np.einsum("ij,ij->j", r[:, live], z)
-        d[:, live] = z + (rz_new / rz[live]) * d[:, live]
-        rz[live] = rz_new
+        hd = np.asarray(h @ d)
+        alpha = rz / np.einsum("ij,ij->j", d, hd)
+        if live.size == x.shape[1]:
+            x += alpha * d
+        else:
+            x[:, live] += alpha * d
+        r -= alpha * hd
+        z = precondition(r)
+        rz_new = np.einsum("ij,ij->j", r, z)
+        d = z + (rz_new / rz) * d
+        rz = rz_new
     return x
 
 
