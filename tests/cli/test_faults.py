@@ -248,8 +248,13 @@ def _start_streamed_render(folder: Path) -> subprocess.Popen:
     deadline = time.monotonic() + 60
     while not _hidden(folder) and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.05)
-    assert proc.poll() is None and _hidden(folder), "the render never started its temporaries"
-    return proc
+    if proc.poll() is None and _hidden(folder):
+        return proc
+    proc.kill()  # no process left behind; say what it said
+    _, err = proc.communicate(timeout=60)
+    raise AssertionError(
+        f"the render never started its temporaries (exit {proc.returncode}): {err[-2000:]}"
+    )
 
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL])
