@@ -15,8 +15,10 @@ size and structure are the fit's, their values need not be its optimum):
   same tolerance, so the draws agree to about the tolerance (not to rounding).
 
 Rows: Z and log R together (what ``fit_lines`` uses) and Z alone (``reflectivity=False``: one
-LU, then its solves). Wall seconds, best of ``--repeats``; the difference column is the largest
-``|Z draw new − old|`` over the largest ``|Z draw old|``.
+LU, then its solves). Wall seconds, best of ``--repeats``; ``draws`` is the largest
+``|Z draw new − old|`` over the largest ``|Z draw old|``; ``std max / median`` the largest and
+the median relative difference of the cells' Z std (``surface.solve.draws_std``, what
+``elevation_std`` returns) between the two paths.
 
 Usage: ``python tools/bench_uncertainty.py [--seabed sand] [--pings 200] [--repeats 2]``.
 """
@@ -33,7 +35,12 @@ from scipy.sparse.linalg import LinearOperator, cg, splu
 
 from sonar_raster.inversion.surface import Line
 from sonar_raster.inversion.surface import solve as surface_solve
-from sonar_raster.inversion.surface.solve import SYMMETRIC_LU, laplace_draws, problem_at
+from sonar_raster.inversion.surface.solve import (
+    SYMMETRIC_LU,
+    draws_std,
+    laplace_draws,
+    problem_at,
+)
 
 
 def baseline(h, nz: int, rhs: np.ndarray) -> np.ndarray:
@@ -70,7 +77,10 @@ def main() -> None:
         p[problem.phi_slice(side)] = math.log(float(np.mean(values)))
     nz = problem.nz
     print(f"{args.seabed}, {args.pings} pings: {nz} Z knots, {problem.nr} log R knots, 32 samples")
-    print(f"{'unknowns':12s} {'old s':>7s} {'new s':>7s} {'ratio':>6s} {'max diff':>9s}")
+    print(
+        f"{'unknowns':12s} {'old s':>7s} {'new s':>7s} {'ratio':>6s} {'draws':>8s} "
+        f"{'std max':>8s} {'median':>8s}"
+    )
     for label, reflectivity in (("Z and log R", True), ("Z alone", False)):
         h, rhs = laplace_draws(problem, p, 32, reflectivity=reflectivity)
         best = {"old": math.inf, "new": math.inf}
@@ -84,9 +94,13 @@ def main() -> None:
                     out[name] = surface_solve._symmetric_solver(h, nz)(rhs)[:nz]
                 best[name] = min(best[name], time.perf_counter() - start)
         diff = np.max(np.abs(out["new"] - out["old"])) / np.max(np.abs(out["old"]))
+        stds = {name: draws_std(problem, knots) for name, knots in out.items()}
+        rel = np.concatenate(
+            [np.ravel(np.abs(stds["new"][k] / stds["old"][k] - 1.0)) for k in stds["old"]]
+        )
         print(
             f"{label:12s} {best['old']:7.2f} {best['new']:7.2f} "
-            f"{best['old'] / best['new']:6.2f} {diff:9.1e}",
+            f"{best['old'] / best['new']:6.2f} {diff:8.1e} {rel.max():8.1e} {np.median(rel):8.1e}",
             flush=True,
         )
 

@@ -88,9 +88,11 @@ SYMMETRIC_LU = {
     "diag_pivot_thresh": 0.0,
     "options": {"SymmetricMode": True},
 }
+#: Draws of the Laplace approximation behind each cell's Z std (32 estimate a std to ~12 %).
+LAPLACE_SAMPLES = 32
 #: Incomplete LU of the uncertainty's diagonal blocks (Z, log R) as its preconditioner: on the
-#: bench's 2 x 28 737 knots 3.5 s for the 32 samples against 9.7 s with complete LU factors,
-#: every Z std within 1.5 % (median 0.02 %) of theirs (tools/bench_uncertainty.py).
+#: bench's 2 x 28 737 knots 3.4-3.6 s for the 32 samples against 9.7 s with complete LU
+#: factors, the cells' Z std within 0.8 % (median 0.02 %) of theirs (tools/bench_uncertainty.py).
 BLOCK_ILU = {"drop_tol": 1e-4, "fill_factor": 10}
 
 Progress = Callable[[str], None]
@@ -208,7 +210,9 @@ def fit_lines(
             )
     assert params is not None and previous is not None
     if uncertainty and progress is not None:
-        progress(f"uncertainty of Z: 32 samples of {previous.nz + previous.nr} knots")
+        progress(
+            f"uncertainty of Z: {LAPLACE_SAMPLES} samples of {previous.nz + previous.nr} knots"
+        )
     std = elevation_std(previous, params) if uncertainty else {}
     if progress is not None:
         progress(f"done in {time.perf_counter() - start:.0f} s")
@@ -587,7 +591,7 @@ def _results(
 def elevation_std(
     problem: Problem,
     p: np.ndarray,
-    samples: int = 32,
+    samples: int = LAPLACE_SAMPLES,
     seed: int = 0,
     reflectivity: bool = True,
 ) -> dict[tuple[int, str], np.ndarray]:
@@ -604,7 +608,11 @@ def elevation_std(
     deviation is that of its interpolated Z over the samples.
     """
     h, rhs = laplace_draws(problem, p, samples, seed, reflectivity)
-    knots = _symmetric_solver(h, problem.nz)(rhs)[: problem.nz]  # (nz, samples)
+    return draws_std(problem, _symmetric_solver(h, problem.nz)(rhs)[: problem.nz])
+
+
+def draws_std(problem: Problem, knots: np.ndarray) -> dict[tuple[int, str], np.ndarray]:
+    """Per view (line, side), each cell's standard deviation of Z over drawn Z knots (nz, k)."""
     return {
         (v.line, v.side): np.std(np.asarray(v.bz @ knots), axis=1, ddof=1).reshape(v.shape)
         for v in problem.views
