@@ -61,6 +61,29 @@ def test_gradient_matches_central_differences(lines):
         assert grad[i] == pytest.approx(numeric, rel=2e-3, abs=1e-3 * (1 + abs(numeric)))
 
 
+def test_the_anchor_offset_is_the_crests_the_data_confirm():
+    """The first return reads a rough seabed's crests: the tracker on the model's own image
+    reads above its level, and that gap comes off the tracked altitude as far as the data's
+    first returns rise and fall with the model's from ping to ping (all of it when they do,
+    none when the data's stay level)."""
+    problem, _, rng = _problem(5, shadows=False)
+    p = solve._start(problem)
+    zc = p[: problem.nz].reshape(problem.kz)
+    knots_y, knots_x = problem.grid.knots("z")
+    for side in (-1.0, 1.0):  # ridges along track 0.8 m to either side
+        zc[:, np.argmin(np.abs(knots_x - side * 0.8))] += rng.uniform(0.3, 0.5, len(knots_y))
+    seen, depth = solve.model_first_return(problem, p, 0)
+    gap = float(np.median(seen - depth))
+    assert gap < -0.5 * problem.views[0].geom.range_bin  # crests read above the level
+    lead = problem.views[problem.anchored[0]]
+    lead.altitude[:] = seen  # the data's first returns are the model's
+    solve._track_model(problem, p)
+    assert np.allclose(problem.anchor_offset[0], gap)
+    lead.altitude[:] = float(np.mean(seen))  # the data's stay level
+    solve._track_model(problem, p)
+    assert np.allclose(problem.anchor_offset[0], 0.0)
+
+
 def test_bspline_basis_reproduces_linear_functions():
     x = np.linspace(-3.0, 7.0, 101)
     basis = layout.bspline_basis(x, -3.0, 7.0, 0.5)

@@ -31,8 +31,10 @@ REFLECTIVITY_WEIGHT = 0.5
 REFLECTIVITY_EDGE = 0.05
 #: Weight of the curvature of log Φ against angle, in the same units, per node.
 BEAM_WEIGHT = 10.0
-#: Standard deviation of the first-return altitude, in range bins.
-ANCHOR_BINS = 4.0
+#: Standard deviation of the first-return altitude per ping, in range bins: the bottom
+#: tracker's own error on a single look (a phase bias of up to a third of a bin); its reading
+#: of a rough seabed's crests is taken off first (``solve.CREST_OFFSET``).
+ANCHOR_BINS = 0.25
 #: Standard deviation of the relief about the flat seabed at the first return, metres (None:
 #: no such prior). The image hardly fixes a broad bending of Z that the beam can absorb.
 RELIEF_STD: float | None = 0.3
@@ -133,6 +135,12 @@ class Problem:
         self.anchored: dict[int, int] = {}
         for i, v in enumerate(self.views):
             self.anchored.setdefault(v.line, i)
+        #: Per line and ping, how far the first return reads above the seabed's level (its
+        #: crests, as far as the data confirm them: ``solve._track_model``; 0 until measured),
+        #: taken off the tracked altitude by the anchor.
+        self.anchor_offset: dict[int, np.ndarray] = {
+            line: np.zeros(self.views[i].shape[0]) for line, i in self.anchored.items()
+        }
 
     def relief_weights(self) -> np.ndarray | None:
         """Per Z knot, the weight of ``(Z − flat)²`` in the priors, (ky, kx); None if none.
@@ -272,13 +280,14 @@ class Problem:
         return ANCHOR_BINS * view.geom.range_bin
 
     def _anchor(self, zc: np.ndarray) -> tuple[float, np.ndarray]:
-        """Each line's nadir at its first-return altitude below the transducer."""
+        """Each line's nadir at its first-return altitude (less its crests) below the transducer."""
         total, grad = 0.0, np.zeros(self.nz)
-        for i in self.anchored.values():
+        for line, i in self.anchored.items():
             view = self.views[i]
             known = np.isfinite(view.altitude)
             zn = np.asarray(view.nadir @ zc.ravel()) - view.height
-            res = np.where(known, zn + np.nan_to_num(view.altitude), 0.0)
+            target = np.nan_to_num(view.altitude) - self.anchor_offset[line]
+            res = np.where(known, zn + target, 0.0)
             w = 1.0 / (2.0 * self.anchor_std(view) ** 2)
             total += w * float(np.sum(res * res))
             grad += view.nadir.T @ (2.0 * w * res)

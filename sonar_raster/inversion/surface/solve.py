@@ -43,6 +43,9 @@ DEPOSIT = "tent"
 #: A one-bin box in range sampled on the bins: what the tent deposit adds to the renderer's
 #: binning.
 TENT_BLUR = (0.25, 0.5, 0.25)
+#: Take the crests the first return reads off its altitude before each Gauss-Newton step
+#: (:func:`_track_model`).
+CREST_OFFSET = True
 
 #: Largest number of looks the likelihood trusts (the model's own error on clean images).
 MAX_LOOKS = 30.0
@@ -823,6 +826,67 @@ def deposit_jacobian(
     return (sparse.diags(np.sqrt(weight).ravel()) @ deposit @ sparse.diags(amp)).tocsr()
 
 
+def model_first_return(
+    problem: Problem, p: np.ndarray, line: int
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The bottom tracker's altitude on the model's image of one line, and the model's level.
+
+    The image is the model's with the renderer's box bins (``deposit="segment"``), both sides;
+    the level per ping is the mean depth below the transducer over the nadir's fold (ground
+    within ``√(2 h Δ)`` of nadir, where the slant range stays within one bin of the altitude
+    h). None where the tracker finds no return.
+    """
+    from ..bottom import track_bottom
+
+    views = [v for v in problem.views if v.line == line]
+    sides, depths = {}, []
+    lead = views[0]
+    fold = math.sqrt(2.0 * float(np.nanmedian(lead.altitude)) * lead.geom.range_bin)
+    for view in views:
+        z, r, beam = problem.fields(p, view)
+        shade = soft_shadow(z, view.geom.x, view.tau)[0]
+        g = view.geom
+        boxes = Geometry(g.x, g.dx, g.dy, g.range_bin, g.bins, g.subsamples, "segment")
+        sides[view.side] = forward(r * shade, beam.phi, z, boxes)
+        depths.append(-z[:, g.x <= fold])
+    if not any(d.size for d in depths):
+        return None
+    try:
+        seen = track_bottom(sides, lead.geom.range_bin).altitude
+    except SonarRasterError:
+        return None
+    return seen, np.concatenate(depths, axis=1).mean(axis=1)
+
+
+def _track_model(problem: Problem, p: np.ndarray) -> None:
+    """Set each line's anchor offset (:attr:`.problem.Problem.anchor_offset`).
+
+    The first return reads a rough seabed's crests, not its level. The offset is how far the
+    tracker on the model's own image reads above the model's level (:func:`model_first_return`,
+    the median over pings), times how much of that the data confirm: the regression slope, over
+    pings, of the data's first-return height on the model's (heights in the lines' common
+    datum, so the sonar's heave drops out where the transducer height is known), clipped to
+    [0, 1]. Where the model's relief near nadir is real its crests come and go with the data's;
+    where it is the fit's noise, they do not, and the offset vanishes.
+    """
+    for line, lead in problem.anchored.items():
+        found = model_first_return(problem, p, line)
+        if found is None:
+            continue
+        seen, depth = found
+        altitude, height = problem.views[lead].altitude, problem.views[lead].height
+        ok = np.isfinite(seen) & np.isfinite(altitude)
+        if ok.sum() < 3:
+            continue
+        # the first returns' heights in the common datum: the sonar's own heave drops out
+        a, b = (height - seen)[ok], (height - altitude)[ok]
+        a, b = a - a.mean(), b - b.mean()
+        norm = float(np.sum(a * a))
+        trust = min(max(float(np.sum(a * b)) / norm, 0.0), 1.0) if norm > 0 else 0.0
+        gap = float(np.median((seen - depth)[ok]))
+        problem.anchor_offset[line] = np.full(len(altitude), trust * gap)
+
+
 def _gn_matvec(problem: Problem, lhs: sparse.csc_matrix, v: np.ndarray) -> np.ndarray:
     out = np.asarray(lhs @ v)
     if problem.w_line > 0:
@@ -840,7 +904,8 @@ def _gauss_newton(
 
     Each Z step solves ``(H + H_line + μ D) δ = −g`` by conjugate gradients preconditioned with
     the sparse LU factors of ``H + μ D`` (D its diagonal; μ shrinks after a good step and grows
-    after a bad one), then backtracks on the full objective, which never rises.
+    after a bad one), then backtracks on the full objective, which never rises within a step
+    (with ``CREST_OFFSET`` the anchor's crest offset is measured anew before each step).
     """
     from scipy.sparse.linalg import LinearOperator, cg, splu
 
@@ -850,6 +915,9 @@ def _gauss_newton(
     value, grad = problem(p)
     count, damping = 1, 1e-3
     for k in range(int(steps)):
+        if CREST_OFFSET:
+            _track_model(problem, p)
+            value, grad = problem(p)
         h = _fisher_z(problem, p)
         diag = h.diagonal()
         lhs = (h + sparse.diags(damping * diag + 1e-12 * diag.mean())).tocsc()
