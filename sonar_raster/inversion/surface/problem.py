@@ -135,12 +135,10 @@ class Problem:
         self.anchored: dict[int, int] = {}
         for i, v in enumerate(self.views):
             self.anchored.setdefault(v.line, i)
-        #: Per line and ping, how far the first return reads above the seabed's level (its
+        #: Per line, how far the first return reads above the seabed's level, metres (its
         #: crests, as far as the data confirm them: ``solve._track_model``; 0 until measured),
         #: taken off the tracked altitude by the anchor.
-        self.anchor_offset: dict[int, np.ndarray] = {
-            line: np.zeros(self.views[i].shape[0]) for line, i in self.anchored.items()
-        }
+        self.anchor_offset: dict[int, float] = dict.fromkeys(self.anchored, 0.0)
 
     def relief_weights(self) -> np.ndarray | None:
         """Per Z knot, the weight of ``(Z − flat)²`` in the priors, (ky, kx); None if none.

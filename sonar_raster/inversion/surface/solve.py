@@ -884,7 +884,7 @@ def _track_model(problem: Problem, p: np.ndarray) -> None:
         norm = float(np.sum(a * a))
         trust = min(max(float(np.sum(a * b)) / norm, 0.0), 1.0) if norm > 0 else 0.0
         gap = float(np.median((seen - depth)[ok]))
-        problem.anchor_offset[line] = np.full(len(altitude), trust * gap)
+        problem.anchor_offset[line] = trust * gap
 
 
 def _gn_matvec(problem: Problem, lhs: sparse.csc_matrix, v: np.ndarray) -> np.ndarray:
@@ -912,12 +912,11 @@ def _gauss_newton(
     nz = problem.nz
     free = np.zeros(problem.size, bool)
     free[nz:] = True
+    if CREST_OFFSET:
+        _track_model(problem, p)
     value, grad = problem(p)
     count, damping = 1, 1e-3
     for k in range(int(steps)):
-        if CREST_OFFSET:
-            _track_model(problem, p)
-            value, grad = problem(p)
         h = _fisher_z(problem, p)
         diag = h.diagonal()
         lhs = (h + sparse.diags(damping * diag + 1e-12 * diag.mean())).tocsc()
@@ -937,7 +936,11 @@ def _gauss_newton(
         damping = damping * 0.3 if accepted else damping * 10.0
         p, value, n = _minimise(problem, p, INNER_ITERATIONS, free)
         count += n
-        grad = problem(p)[1]
+        if CREST_OFFSET and k + 1 < steps:  # the next step's anchor, at the surface it starts from
+            _track_model(problem, p)
+            value, grad = problem(p)
+        else:
+            grad = problem(p)[1]
         if report is not None:
             report(k + 1, int(steps), value)
     return p, value, count
