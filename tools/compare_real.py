@@ -42,6 +42,8 @@ import numpy as np
 from _common import REAL_XTF, parser
 from scipy import ndimage, stats
 
+from sonar_raster.effects.presets import DEFAULT_SENSOR
+
 DEFAULT_XTF = REAL_XTF
 SKIP_PINGS = 8  # the first pings have no navigation and a settling altitude
 PATCH = 16
@@ -195,6 +197,7 @@ def simulate(real: RealPass, altitudes: np.ndarray, args: argparse.Namespace, be
     from sonar_raster.effects.presets import preset
     from sonar_raster.rendering.gl.raster import render_raster
     from sonar_raster.scene import MeshPart
+    from sonar_raster.scenes.seabed import MICRO_RESOLUTION_BINS, Heightfield, micro_relief
     from sonar_raster.scenes.sediments import material_index, material_reflectivity
     from sonar_raster.sonar import BeamPattern
 
@@ -209,6 +212,11 @@ def simulate(real: RealPass, altitudes: np.ndarray, args: argparse.Namespace, be
     seabed = MeshPart(
         v, np.array([[0, 1, 2], [0, 2, 3]]), material_reflectivity("sand"), "seabed", True, law
     )
+    if args.micro_relief == "on":  # the sand's own roughness spectrum, at the image's scales
+        field = Heightfield(np.zeros((2, 2)), -half, -5.0, 2.0 * half, length + 10.0)
+        cell = args.relief_cell or MICRO_RESOLUTION_BINS * real.range_bin
+        field = micro_relief(field, "sand", resolution=cell, seed=args.seed)
+        seabed = replace(field.mesh(material_reflectivity("sand")), is_seabed=True, law=law)
     sonar = p.sonar(real.max_range, real.range_bin)
     if beam is not None:
         sonar = replace(sonar, beam=BeamPattern.gaussian(beam), tilt=math.radians(tilt))
@@ -428,7 +436,7 @@ def side_asymmetry(real: RealPass, window: slice, n_bands: int) -> list[float]:
 def main(argv: list[str] | None = None) -> int:
     ap = parser(__doc__)
     ap.add_argument("--xtf", type=Path, default=DEFAULT_XTF)
-    ap.add_argument("--sensor", default="marine-sonic-600", help="sensor preset simulated")
+    ap.add_argument("--sensor", default=DEFAULT_SENSOR, help="sensor preset simulated")
     ap.add_argument("--along-beam-deg", type=float, default=None, help="default: the preset's")
     ap.add_argument("--range-resolution", type=float, default=None, metavar="M")
     ap.add_argument("--noise-db", type=float, default=None, help="default: the preset's")
@@ -447,6 +455,16 @@ def main(argv: list[str] | None = None) -> int:
         choices=("apl", "lambert"),
         default="apl",
         help="seabed scattering law: the APL-UW sand law (default) or Lambert",
+    )
+    ap.add_argument(
+        "--micro-relief",
+        choices=("on", "off"),
+        default="on",
+        help="the sand's APL-UW roughness as relief on the seabed (seabed.micro_relief; "
+        "default on), or a flat plane",
+    )
+    ap.add_argument(
+        "--relief-cell", type=float, default=None, metavar="M", help="its cell (default 1.5 bins)"
     )
     ap.add_argument(
         "--fit-beam", action="store_true", help="fit the vertical beam to the real mean profile"

@@ -71,7 +71,8 @@ def add_effect_options(parser: argparse.ArgumentParser) -> None:
     add(
         "--ideal",
         action="store_true",
-        help="no sensor effects: the raw Lambertian image (options below still apply)",
+        help="no sensor effects and no seabed micro_relief: the raw Lambertian image of the "
+        "scene's geometry (options below still apply)",
     )
     add("--along-beam-deg", type=_number, metavar="DEG", help="side-scan horizontal beam width")
     add("--array-length", type=_number, metavar="M", help="side-scan array length (beam λ/L)")
@@ -122,7 +123,8 @@ def _default_sensor() -> str:
     return DEFAULT_SENSOR
 
 
-def _ideal(args: argparse.Namespace) -> bool:
+def ideal_requested(args: argparse.Namespace) -> bool:
+    """``--ideal``, ``--no-effects`` or ``--sensor ideal``: no effects, no seabed micro-relief."""
     flags = getattr(args, "ideal", False) or getattr(args, "no_effects", False)
     return bool(flags or getattr(args, "sensor", None) == "ideal")
 
@@ -150,7 +152,7 @@ def apply_sensor_option(args: argparse.Namespace, setup: Any) -> Any:
         explicit options applied (``notes["sensor_sonar_overrides"]`` lists them).
     """
     name = getattr(args, "sensor", None)
-    if name is None or _ideal(args):
+    if name is None or ideal_requested(args):
         return setup
     import math
     from dataclasses import replace
@@ -247,7 +249,7 @@ def effects_from_args(args: argparse.Namespace, scene_effects: Any, *, default: 
     from ..effects.chain import Effects
     from ..effects.presets import DEFAULT_SENSOR, preset
 
-    if _ideal(args):
+    if ideal_requested(args):
         base = Effects()
     elif getattr(args, "sensor", None) is not None:
         base = preset(args.sensor).effects()

@@ -17,6 +17,7 @@ from .effects_options import (
     apply_sensor_option,
     display_from_args,
     effects_from_args,
+    ideal_requested,
 )
 
 _SIDE_CHOICES = {"port": ("port",), "starboard": ("starboard",), "both": ("port", "starboard")}
@@ -139,6 +140,11 @@ def add_parser(sub: Any) -> None:
         action="store_true",
         help="render even when the job's estimate exceeds this machine's memory, the free "
         "disk of an output's folder, or an hour",
+    )
+    render.add_argument(
+        "--no-micro-relief",
+        action="store_true",
+        help="leave out the seabed's micro_relief (its sediment's roughness; --ideal does too)",
     )
     render.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
     _add_sonar_options(render)
@@ -312,6 +318,7 @@ def load_setup(args: argparse.Namespace) -> Any:
         speed=args.speed,
         track=None if args.track is None else _recorded_track(args.track),
         placement=Placement(args.up, args.units, args.scale, args.position),
+        micro_relief=False if args.no_micro_relief or ideal_requested(args) else None,
     )
     return load_scene(args.scene, overrides)
 

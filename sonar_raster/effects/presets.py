@@ -526,9 +526,10 @@ PRESETS: dict[str, SensorPreset] = {
 }
 
 # The recorder as the real file's headers describe it (DownsampleMethod 2 = MAX: each stored
-# sample the largest of several finer ones, so a pulse shorter than a stored sample). Not the
-# default: without seabed texture it measures further from the file than the one-look recorder
-# (docs/sensors.md, "the realism-physics pass").
+# sample the largest of several finer ones, so a pulse shorter than a stored sample). The
+# default since the seabed's micro-relief (scenes.seabed.micro_relief): with it, this recorder
+# brings the file's speckle contrast and histogram closest (docs/sensors.md); over a flat
+# seabed without texture the one-look "marine-sonic-600" measures closer.
 PRESETS["marine-sonic-600-max"] = replace(
     PRESETS["marine-sonic-600"],
     name="marine-sonic-600-max",
@@ -556,7 +557,7 @@ PRESETS["marine-sonic-600-max"] = replace(
 
 
 #: The sensor whose effects ``render`` and ``dataset`` apply when none is named (the real file's).
-DEFAULT_SENSOR = "marine-sonic-600"
+DEFAULT_SENSOR = "marine-sonic-600-max"
 
 
 def list_presets() -> list[str]:

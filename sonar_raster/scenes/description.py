@@ -26,7 +26,15 @@ from ..errors import InputWarning, SonarRasterError
 from ..scene import MeshPart, Scene, build_scene
 from ..sonar import SIDES, BeamPattern, Sonar
 from ..trajectory import Trajectory
-from .seabed import Heightfield, level_of_detail, make_seabed, reflectivity_map
+from .seabed import (
+    MICRO_OUTER_SCALE,
+    MICRO_RESOLUTION_BINS,
+    Heightfield,
+    level_of_detail,
+    make_seabed,
+    micro_relief,
+    reflectivity_map,
+)
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -146,7 +154,8 @@ class Overrides:
     at half power; ``heading_deg`` and ``ping_spacing`` (metres) the straight track's;
     ``speed`` (m/s) sets the ping spacing to the distance run in one ping period (two-way
     travel time to the maximum range); ``track`` replaces the track by a recorded one;
-    ``placement`` places a bare model file (a description places its objects itself).
+    ``placement`` places a bare model file (a description places its objects itself);
+    ``micro_relief = False`` leaves out a seabed's ``micro_relief`` (the ideal image).
     """
 
     max_range: float | None = None
@@ -163,6 +172,7 @@ class Overrides:
     speed: float | None = None
     track: RecordedTrack | None = None
     placement: Placement | None = None
+    micro_relief: bool | None = None
 
 
 def load_scene_file(path: str | Path, overrides: Overrides | None = None) -> SceneSetup:
@@ -481,12 +491,13 @@ DEFAULT_LOD_BINS = 0.5
 
 
 def _seabed(
-    table: dict, base: Path, where: str, sonar: Sonar, notes: dict
+    table: dict, base: Path, where: str, sonar: Sonar, notes: dict, with_relief: bool = True
 ) -> tuple[Heightfield, MeshPart] | None:
     if not table:
         return None
     kind = table.pop("kind", "flat")
     map_file = table.pop("reflectivity_map", None)
+    relief = _micro_relief(table, sonar, f"{where} [seabed]")
     default = DEFAULT_SEABED_REFLECTIVITY if map_file is None else 1.0
     reflectivity, law = _reflectivity(table, default, f"{where} [seabed]")
     lod = table.pop("lod", True)
@@ -506,10 +517,48 @@ def _seabed(
         if report:
             notes["seabed_lod"] = report
             log.info("seabed level of detail: %s", report)
+    if relief is not None and with_relief:
+        field = micro_relief(field, **relief)
+        notes["seabed_micro_relief"] = {**relief, "cell_m": [field.dx, field.dy]}
     if map_file is not None:
         node_map = float(reflectivity) * reflectivity_map(base / str(map_file), field)
         return field, replace(field.mesh(reflectivity=node_map, name="seabed"), law=law)
     return field, replace(field.mesh(reflectivity=float(reflectivity), name="seabed"), law=law)
+
+
+def _micro_relief(table: dict, sonar: Sonar, where: str) -> dict | None:
+    """The arguments of :func:`.seabed.micro_relief` from a ``[seabed]`` table, or None.
+
+    ``micro_relief = true`` or ``{ sediment, resolution, outer_scale, seed }``; the sediment
+    defaults to the seabed's ``material``, the resolution to ``MICRO_RESOLUTION_BINS`` bins.
+    """
+    spec = table.pop("micro_relief", False)
+    if spec is False:
+        return None
+    if spec is True:
+        spec = {}
+    if not isinstance(spec, dict):
+        raise SonarRasterError(
+            f"{where}: micro_relief must be true, false or a table "
+            f"{{ sediment = NAME, resolution = M, outer_scale = M, seed = N }}, got {spec!r}"
+        )
+    spec = dict(spec)
+    sediment = spec.pop("sediment", table.get("material"))
+    if not isinstance(sediment, str):
+        raise SonarRasterError(
+            f"{where}: micro_relief needs a sediment (its roughness spectrum): give the seabed a "
+            "'material' or write micro_relief = { sediment = \"sand\" }"
+        )
+    out = {
+        "sediment": sediment,
+        "resolution": _take(
+            spec, "resolution", MICRO_RESOLUTION_BINS * sonar.range_bin, (int, float), where
+        ),
+        "outer_scale": _take(spec, "outer_scale", MICRO_OUTER_SCALE, (int, float), where),
+        "seed": _take(spec, "seed", 0, int, where),
+    }
+    _no_leftovers(spec, f"{where} micro_relief")
+    return out
 
 
 def _rotation(angles_deg: np.ndarray) -> np.ndarray:
@@ -676,7 +725,8 @@ def _from_description(path: Path, ov: Overrides) -> SceneSetup:
     data = _sensor_preset(data, where)  # issue 16: [sonar] preset = "NAME" (effects/presets.py)
     sonar = _sonar(_table(data, "sonar", where), base, ov, where)
     notes: dict = {}
-    sea = _seabed(_table(data, "seabed", where), base, where, sonar, notes)
+    relief = ov.micro_relief is not False
+    sea = _seabed(_table(data, "seabed", where), base, where, sonar, notes, relief)
     objects = data.get("objects", [])
     if not isinstance(objects, list) or not all(isinstance(o, dict) for o in objects):
         raise SonarRasterError(f"{where}: objects must be [[objects]] tables")

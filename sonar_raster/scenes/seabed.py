@@ -460,6 +460,94 @@ def _power_law(exponent: float, correlation_length: float) -> Callable[[np.ndarr
     return lambda k: (1.0 + (k * correlation_length) ** 2) ** (-0.5 * exponent)
 
 
+#: Outer scale of the micro-relief, metres: its spectrum is the sediment's power law above
+#: ``1/outer_scale`` and flat below (larger relief is the scene's own seabed kind).
+MICRO_OUTER_SCALE = 2.0
+
+#: Default cell of the micro-relief, in range bins.
+MICRO_RESOLUTION_BINS = 1.5
+
+
+def micro_relief_spectrum(sediment: str, outer_scale: float = MICRO_OUTER_SCALE):
+    """The sediment's roughness spectrum ``W(K) = w₂ (K² + 1/L²)^(-γ/2)``, SI units.
+
+    ``w₂`` and ``γ`` are the APL-UW TR 9407 Table 2 values of the sediment (the same numbers
+    that set its backscattering law); ``W`` is the 2-D spectral density of heights, so that
+    the height variance is ``∫ W d²K`` (K in rad/m, W in m⁴).
+
+    Parameters
+    ----------
+    sediment : str
+        A sediment class or Table 2 name (see :func:`..sediments.sediment`).
+    outer_scale : float
+        ``L``, metres (> 0).
+
+    Returns
+    -------
+    callable
+        ``W(K)`` for an array of angular wavenumbers (rad/m).
+    """
+    from .backscatter import _spectrum_si
+    from .sediments import sediment as find
+
+    p = find(sediment).parameters
+    w2, gamma = _spectrum_si(p), p.gamma
+    inv = 1.0 / positive("micro_relief 'outer_scale'", outer_scale)
+    return lambda k: w2 * (k * k + inv * inv) ** (-0.5 * gamma)
+
+
+def micro_relief(
+    field: Heightfield,
+    sediment: str,
+    *,
+    resolution: float,
+    outer_scale: float = MICRO_OUTER_SCALE,
+    seed: int = 0,
+) -> Heightfield:
+    """The seabed with its sediment's roughness added at scales the image resolves.
+
+    A rough seabed's texture in a side-scan image comes from its relief at scales from the
+    resolution cell up: each facet's slope changes its grazing angle, so its backscatter, by
+    more the lower the grazing angle, and the troughs behind crests fall in shadow. The relief
+    is a Gaussian random field with :func:`micro_relief_spectrum` (the sediment's published
+    APL-UW spectrum, not a fitted level), made by spectral synthesis on a grid of cells no
+    larger than ``resolution`` and added to ``field`` resampled bilinearly onto that grid.
+
+    Parameters
+    ----------
+    field : Heightfield
+        The seabed (any kind).
+    sediment : str
+        Its material: a sediment class or TR 9407 Table 2 name.
+    resolution : float
+        Largest cell of the result, metres (about one to two range bins).
+    outer_scale : float
+        Largest scale of the added relief, metres.
+    seed : int
+        Seed of the random field (the same seed gives the same relief bit for bit).
+
+    Returns
+    -------
+    Heightfield
+    """
+    fine = field.resampled(positive("micro_relief 'resolution'", resolution))
+    ny, nx = fine.shape
+    spectrum = micro_relief_spectrum(sediment, outer_scale)
+    rng = np.random.default_rng(_seed(seed))
+    noise_hat = np.fft.rfft2(rng.standard_normal((ny, nx)))
+    dkx, dky = 2.0 * np.pi / (nx * fine.dx), 2.0 * np.pi / (ny * fine.dy)
+    ky = 2.0 * np.pi * np.fft.fftfreq(ny, fine.dy)
+    kx = 2.0 * np.pi * np.fft.rfftfreq(nx, fine.dx)
+    k = np.hypot(ky[:, None], kx[None, :])
+    # irfft2 divides by N = nx ny, white noise has |n̂|² = N on average: a gain of
+    # √(N W dkx dky) gives the field the variance Σ W dkx dky, the integral of W over the grid's
+    # wavenumbers
+    gain = np.sqrt(nx * ny * spectrum(k) * dkx * dky)
+    gain[0, 0] = 0.0
+    relief = np.fft.irfft2(noise_hat * gain, s=(ny, nx))
+    return Heightfield(fine.z + relief, fine.x0, fine.y0, fine.dx, fine.dy)
+
+
 # --------------------------------------------------------------------------- generators
 
 

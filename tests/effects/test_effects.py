@@ -12,6 +12,7 @@ from scipy import special, stats
 from sonar_raster.effects import chain as fx_module
 from sonar_raster.effects.absorption import francois_garrison
 from sonar_raster.effects.chain import Effects, apply_effects, load_tvg_curve
+from sonar_raster.effects.presets import DEFAULT_SENSOR
 from sonar_raster.errors import SonarRasterError
 from sonar_raster.image import SonarImage
 from sonar_raster.rendering.analytic import flat_seabed_profile
@@ -555,7 +556,7 @@ def test_cli_options_merge_over_the_scene_effects():
         return _parser().parse_args(["render", "x.toml", "-o", "o.png", *extra])
 
     assert effects_from_args(parse("--ideal"), None) is None  # nothing on: the step is skipped
-    assert effects_from_args(parse(), None).sensor == "marine-sonic-600"  # the default sensor
+    assert effects_from_args(parse(), None).sensor == DEFAULT_SENSOR  # the default sensor
     scene = Effects(along_beam_deg=1.0, speckle="exponential")
     fx = effects_from_args(parse("--sas-resolution", "0.2", "--k-shape", "3"), scene)
     assert fx.sas_resolution_m == 0.2 and fx.along_beam_deg is None  # the CLI picks the mode

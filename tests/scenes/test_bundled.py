@@ -7,7 +7,7 @@ import pytest
 
 from sonar_raster.rendering.reference import render_reference
 from sonar_raster.scenes.bundled import DEFAULT_SCENE, bundled_scene, list_bundled
-from sonar_raster.scenes.description import load_scene_file
+from sonar_raster.scenes.description import Overrides, load_scene_file
 
 NAMES = [name for name, _ in list_bundled()]
 
@@ -38,9 +38,15 @@ def test_gl_matches_reference(gl, name):
 
 
 def test_objects_stand_on_the_seabed():
-    setup = load_scene_file(bundled_scene("cylinder_on_flat"))
+    setup = load_scene_file(bundled_scene("cylinder_on_flat"), Overrides(micro_relief=False))
     scene = setup.scene
     cylinder = scene.vertices[np.unique(scene.faces[scene.object_id == 1])]
     assert abs(cylinder[:, 2].min() - 0.0) < 1e-9
     assert np.allclose(cylinder[:, 2].max(), 0.5)
     assert setup.trajectory.positions[0, 2] == pytest.approx(8.0)
+    # with the sand's micro-relief the cylinder stands on the relief under its centre
+    rough = load_scene_file(bundled_scene("cylinder_on_flat")).scene
+    on = rough.vertices[np.unique(rough.faces[rough.object_id == 1])]
+    assert 0.0 < np.ptp(rough.vertices[rough.faces[rough.object_id == 0].ravel(), 2]) < 0.5
+    assert np.ptp(on[:, 2]) == pytest.approx(0.5)
+    assert abs(on[:, 2].min()) < 0.1
