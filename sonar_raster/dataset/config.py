@@ -158,6 +158,7 @@ class SeabedSpec:
     weight: float
     reflectivity: Dist
     params: tuple[tuple[str, Dist], ...]
+    micro_relief: Dist | None = None  # a sediment name (or a choice of them): its roughness
 
 
 @dataclass(frozen=True)
@@ -322,6 +323,7 @@ def _seabed_spec(table: dict, where: str) -> SeabedSpec:
     if weight < 0:
         raise SonarRasterError(f"{where}: 'weight' must be >= 0")
     reflectivity = parse_dist(table.pop("reflectivity", 0.3), f"{where} 'reflectivity'")
+    relief = _micro_relief_dist(table.pop("micro_relief", None), f"{where} 'micro_relief'")
     valid = set(inspect.signature(getattr(_seabed, kind)).parameters) - set(_SEABED_FIXED)
     fixed = sorted(set(table) & set(_SEABED_FIXED))
     if fixed:
@@ -335,7 +337,23 @@ def _seabed_spec(table: dict, where: str) -> SeabedSpec:
             f"valid: {', '.join(sorted(valid))}"
         )
     params = tuple((k, parse_dist(v, f"{where} '{k}'")) for k, v in table.items())
-    return SeabedSpec(kind, weight, reflectivity, params)
+    return SeabedSpec(kind, weight, reflectivity, params, relief)
+
+
+def _micro_relief_dist(value: Any, where: str) -> Dist | None:
+    """A sediment name or ``{ choice = [names] }`` (see ``scenes.seabed.micro_relief``)."""
+    if value is None:
+        return None
+    from ..scenes.sediments import sediment
+
+    dist = parse_dist(value, where)
+    if dist.kind not in ("fixed", "choice") or not all(isinstance(v, str) for v in dist.args):
+        raise SonarRasterError(
+            f'{where}: give a sediment name such as "sand" or {{ choice = [names] }}'
+        )
+    for name in dist.args:
+        sediment(name)  # an unknown name fails here, listing the known ones
+    return dist
 
 
 def _object_spec(table: dict, k: int, where: str) -> ObjectSpec:

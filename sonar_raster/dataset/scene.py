@@ -18,7 +18,7 @@ import numpy as np
 from ..errors import SonarRasterError
 from ..scene import MeshPart, Scene, build_scene
 from ..scenes.objects import build_primitive
-from ..scenes.seabed import Heightfield, make_seabed
+from ..scenes.seabed import MICRO_RESOLUTION_BINS, Heightfield, make_seabed, micro_relief
 from ..sonar import BeamPattern, Sonar
 from ..trajectory import Trajectory
 from .config import DatasetConfig, ObjectSpec
@@ -128,7 +128,13 @@ def object_mesh_of(spec: ObjectSpec, params: dict, base: Path) -> tuple[np.ndarr
     return v, f
 
 
-def _seabed(config: DatasetConfig, rng: np.random.Generator, heading_deg: float, extent: tuple):
+def _seabed(
+    config: DatasetConfig,
+    rng: np.random.Generator,
+    heading_deg: float,
+    extent: tuple,
+    range_bin: float,
+):
     weights = np.array([s.weight for s in config.seabeds], dtype=np.float64)
     spec = config.seabeds[int(rng.choice(len(weights), p=weights / weights.sum()))]
     reflectivity = float(spec.reflectivity.draw(rng))
@@ -149,6 +155,12 @@ def _seabed(config: DatasetConfig, rng: np.random.Generator, heading_deg: float,
         seed=seed,
         **build,
     )
+    if spec.micro_relief is not None:  # the sediment's roughness at the image's scales
+        sediment = str(spec.micro_relief.draw(rng))
+        relief_seed = int(rng.integers(2**31))
+        cell = MICRO_RESOLUTION_BINS * range_bin
+        field = micro_relief(field, sediment, resolution=cell, seed=relief_seed)
+        record["micro_relief"] = {"sediment": sediment, "seed": relief_seed, "cell_m": cell}
     return field, reflectivity, record
 
 
@@ -222,7 +234,7 @@ def draw_sample(config: DatasetConfig, seed: int, index: int) -> SampleScene:
     x0 = -ground_max - m if "port" in config.sides else -m
     x1 = ground_max + m if "starboard" in config.sides else m
     extent = (x0, x1, -0.5 * length - m, 0.5 * length + m)
-    field, seabed_r, seabed_record = _seabed(config, rng, heading, extent)
+    field, seabed_r, seabed_record = _seabed(config, rng, heading, extent, sonar.range_bin)
     parts = [field.mesh(reflectivity=seabed_r, name="seabed")]
     instances: list[dict] = []
     centres: list[np.ndarray] = []

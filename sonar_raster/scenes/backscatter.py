@@ -186,7 +186,7 @@ def _reflection(p: SedimentParameters, sin_t: np.ndarray, cos_t: np.ndarray):
     return v, big_p
 
 
-def _spectrum_si(p: SedimentParameters) -> float:
+def spectral_strength_si(p: SedimentParameters) -> float:
     """w₂ in SI units (m^(4-γ)): W(K) = w2_si K^-γ."""
     return p.w2 * 1e-8 * 0.01 ** (-p.gamma)
 
@@ -215,7 +215,7 @@ def roughness_cross_section(
     t = np.asarray(grazing, dtype=np.float64)
     s, c = np.sin(t), np.cos(t)
     k = 2.0 * math.pi * frequency / sound_speed
-    w2 = _spectrum_si(p)
+    w2 = spectral_strength_si(p)
     alpha = p.gamma / 2.0 - 1.0
     g = math.gamma
     ch2 = 2.0 * math.pi * w2 * g(2.0 - alpha) * 2.0 ** (-2.0 * alpha)

@@ -462,7 +462,7 @@ def _power_law(exponent: float, correlation_length: float) -> Callable[[np.ndarr
 
 #: Outer scale of the micro-relief, metres: its spectrum is the sediment's power law above
 #: ``1/outer_scale`` and flat below (larger relief is the scene's own seabed kind).
-MICRO_OUTER_SCALE = 2.0
+MICRO_OUTER_SCALE = 1.0
 
 #: Default cell of the micro-relief, in range bins.
 MICRO_RESOLUTION_BINS = 1.5
@@ -487,11 +487,11 @@ def micro_relief_spectrum(sediment: str, outer_scale: float = MICRO_OUTER_SCALE)
     callable
         ``W(K)`` for an array of angular wavenumbers (rad/m).
     """
-    from .backscatter import _spectrum_si
+    from .backscatter import spectral_strength_si
     from .sediments import sediment as find
 
     p = find(sediment).parameters
-    w2, gamma = _spectrum_si(p), p.gamma
+    w2, gamma = spectral_strength_si(p), p.gamma
     inv = 1.0 / positive("micro_relief 'outer_scale'", outer_scale)
     return lambda k: w2 * (k * k + inv * inv) ** (-0.5 * gamma)
 

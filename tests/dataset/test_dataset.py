@@ -261,6 +261,8 @@ def test_a_failing_sample_is_recorded_and_the_others_complete(tmp_path):
         (("spacing = 0.08", "spacing = { uniform = [1, 2], normal = [0, 1] }"), "exactly one"),
         (('primitive = "cylinder"', 'primitive = "pyramid"'), "unknown primitive"),
         (("[placement]", "[render]\noversample = 0.0\n[placement]"), "oversample"),
+        (('kind = "flat"', 'kind = "flat"\nmicro_relief = "cheese"'), "unknown material"),
+        (('kind = "flat"', 'kind = "flat"\nmicro_relief = 0.1'), "sediment name"),
     ],
 )
 def test_config_errors_name_the_key(tmp_path, change, message):
@@ -604,3 +606,24 @@ def test_bundled_config_loads_and_draws_a_sample_in_its_swath():
     drawn = draw_sample(config, 0, 3)
     assert drawn.sonar.n_bins == 1024 and drawn.trajectory.n_pings == 512
     assert len(drawn.scene.names) == len(drawn.instances) + 1
+
+
+def test_a_seabed_takes_its_drawn_sediments_micro_relief(tmp_path):
+    """``micro_relief`` draws a sediment per sample and adds its roughness to the seabed."""
+    text = SWATH.replace(
+        'kind = "flat"', 'kind = "flat"\nmicro_relief = { choice = ["rock", "mud"] }'
+    )
+    config = _config(tmp_path, text)
+    seen = {}
+    for index in range(6):
+        drawn = draw_sample(config, 3, index)
+        record = drawn.params["seabed"]["micro_relief"]
+        scene = drawn.scene
+        z = scene.vertices[np.unique(scene.faces[scene.object_id == 0]), 2]
+        seen.setdefault(record["sediment"], []).append(float(np.std(z)))
+        assert record["cell_m"] == pytest.approx(1.5 * 12.0 / 256)
+    assert set(seen) == {"rock", "mud"}
+    assert min(seen["rock"]) > 2.0 * max(seen["mud"]) > 0.0  # rock is rougher (TR 9407 w2)
+    # without the key the flat seabed stays flat
+    plain = draw_sample(_config(tmp_path, SWATH, "plain.toml"), 3, 0).scene
+    assert np.ptp(plain.vertices[np.unique(plain.faces[plain.object_id == 0]), 2]) == 0.0

@@ -46,7 +46,7 @@ def test_regressions_reproduce_table_2(name, mz, rho, nu, delta):
 
 def test_medium_sand_spectral_strength_in_si_units():
     # 0.004446 cm⁴ at 1 cm⁻¹ is 1.406e-4 m^0.75 (the value APL-UW's later bistatic code uses)
-    assert bs._spectrum_si(bs.TABLE_2["medium sand"]) == pytest.approx(1.406e-4, rel=2e-3)
+    assert bs.spectral_strength_si(bs.TABLE_2["medium sand"]) == pytest.approx(1.406e-4, rel=2e-3)
 
 
 def test_grain_size_outside_regressions_is_an_error():
@@ -65,7 +65,7 @@ def test_perturbation_term_matches_its_bistatic_form():
     big_p = np.sqrt(kappa**2 - c**2)
     v = (p.rho * s - big_p) / (p.rho * s + big_p)
     g = (1 / p.rho - 1) * (-(c**2) - big_p**2 / p.rho) + 1 - kappa**2 / p.rho
-    w = bs._spectrum_si(p) * (2 * k * (c + 1e-4)) ** -p.gamma
+    w = bs.spectral_strength_si(p) * (2 * k * (c + 1e-4)) ** -p.gamma
     np.testing.assert_allclose(pr, 0.25 * k**4 * np.abs(1 + v) ** 4 * np.abs(g) ** 2 * w, rtol=1e-9)
 
 

@@ -11,7 +11,7 @@ from scipy import integrate
 from sonar_raster.errors import SonarRasterError
 from sonar_raster.scene import build_scene
 from sonar_raster.scenes import seabed
-from sonar_raster.scenes.backscatter import _spectrum_si
+from sonar_raster.scenes.backscatter import spectral_strength_si
 from sonar_raster.scenes.description import Overrides, load_scene_file
 from sonar_raster.scenes.sediments import sediment
 from sonar_raster.sonar import BeamPattern, Sonar
@@ -30,7 +30,7 @@ def test_relief_variance_is_the_spectrum_integrated_over_the_grid(name):
     (not through the module's spectrum function); 4 seeds of a 40 m × 20 m grid at 10 cm.
     """
     p = sediment(name).parameters
-    w2, g, inv = _spectrum_si(p), p.gamma, 1.0 / seabed.MICRO_OUTER_SCALE
+    w2, g, inv = spectral_strength_si(p), p.gamma, 1.0 / seabed.MICRO_OUTER_SCALE
     field = _flat()
     got = [seabed.micro_relief(field, name, resolution=0.1, seed=s).z.var() for s in range(4)]
     kx, ky = math.pi / 0.1, math.pi / 0.1  # Nyquist on each axis
@@ -57,7 +57,7 @@ def test_relief_spectrum_follows_the_power_law_with_the_published_level():
     kk = np.hypot(k[:, None], k[None, :])
     for lo in (5.0, 10.0, 20.0, 40.0):
         ring = (kk >= lo) & (kk < 1.25 * lo)
-        expected = _spectrum_si(p) * np.mean(kk[ring] ** -p.gamma)
+        expected = spectral_strength_si(p) * np.mean(kk[ring] ** -p.gamma)
         assert power[ring].mean() == pytest.approx(expected, rel=0.10), lo
 
 
