@@ -468,7 +468,9 @@ MICRO_OUTER_SCALE = 1.0
 MICRO_RESOLUTION_BINS = 1.5
 
 
-def micro_relief_spectrum(sediment: str, outer_scale: float = MICRO_OUTER_SCALE):
+def micro_relief_spectrum(
+    sediment: str, outer_scale: float = MICRO_OUTER_SCALE
+) -> Callable[[np.ndarray], np.ndarray]:
     """The sediment's roughness spectrum ``W(K) = w₂ (K² + 1/L²)^(-γ/2)``, SI units.
 
     ``w₂`` and ``γ`` are the APL-UW TR 9407 Table 2 values of the sediment (the same numbers
