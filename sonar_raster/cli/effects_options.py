@@ -243,8 +243,7 @@ def effects_from_args(args: argparse.Namespace, scene_effects: Any, *, default: 
     scene_effects : Effects or None
         The scene's effects (``SceneSetup.effects``).
     default : bool
-        Fall back on the default sensor's effects when neither names any (streamed surveys,
-        which have no effects yet, pass False).
+        Fall back on the default sensor's effects when neither names any.
     """
     from ..effects.chain import Effects
     from ..effects.presets import DEFAULT_SENSOR, preset

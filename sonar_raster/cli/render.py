@@ -565,7 +565,7 @@ def raster_estimate(
     rays = float(pings) * settings.along_samples * math.ceil(settings.oversample * bins * 1.2)
     rays *= sides
     cells = float(pings) * bins * sides
-    effects = not streamed and effects_from_args(args, setup.effects) is not None
+    effects = effects_from_args(args, setup.effects) is not None
     triangles = float(setup.scene.n_triangles)
     seconds = (
         _RAY_SECONDS * rays
@@ -740,11 +740,7 @@ def _streamed(args: argparse.Namespace, setup: Any) -> bool:
 def _render_survey(args: argparse.Namespace, setup: Any, outputs: list[Path]) -> int:
     from ..rendering.survey import render_survey
 
-    if effects_from_args(args, setup.effects, default=False) is not None:
-        raise SonarRasterError(
-            "sensor effects are not applied to surveys streamed in blocks (--chunk-pings, or "
-            "over 64 M cells) yet; render fewer pings at a time, or add --no-effects"
-        )
+    effects = effects_from_args(args, setup.effects)
     meta = {"scene": setup.source, "altitude_m": setup.altitude, "pings": setup.trajectory.n_pings}
     meta.update(setup.notes)
     written, summary = render_survey(
@@ -759,6 +755,8 @@ def _render_survey(args: argparse.Namespace, setup: Any, outputs: list[Path]) ->
         dynamic_range_db=args.dynamic_range,
         metadata=meta,
         progress=not args.quiet,
+        effects=effects,
+        seed=args.seed,
     )
     if not args.quiet:
         print(

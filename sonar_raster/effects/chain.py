@@ -50,7 +50,7 @@ costs nothing, and with every stage off the input arrays come back untouched:
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
@@ -745,6 +745,117 @@ def apply_effects(
         meta["sensor_preset"] = fx.sensor
     sides = {name: a.astype(np.float32) for name, a in work.items()}
     return SonarImage(sides, image.sonar, meta)
+
+
+#: Along-track kernel σ (pings) covered by the halo a streamed block borrows from its neighbours.
+HALO_SIGMAS = 6.0
+
+
+def apply_effects_blocks(
+    blocks: Iterable[SonarImage],
+    effects: Effects,
+    *,
+    seed: int | None = None,
+    ping_spacing: float,
+) -> Iterator[SonarImage]:
+    """Apply effects to consecutive blocks of pings as they come, one block behind.
+
+    A long track streamed in blocks (:func:`sonar_raster.rendering.survey.render_survey`) gets
+    the effects of :func:`apply_effects` without being held whole: each block is processed
+    with a halo of ``HALO_SIGMAS`` along-track kernel widths of raw pings from the block
+    before and the block after (so it is yielded when the next one has arrived), and cropped
+    back. What joins exactly: the along-track beam (while the halo fits in the next block),
+    the water column, nadir gap, spreading, absorption, TVG and gain, all per ping. What
+    differs from one whole image: the random fields (speckle, noise) are drawn per block from
+    ``SeedSequence([seed's entropy, block index])``, so their along-track correlation breaks
+    at block edges, and the full scale of ``headroom_db`` is the first block's (later blocks
+    clip and quantise at the same level).
+
+    Parameters
+    ----------
+    blocks : iterable of SonarImage
+        Raw images of consecutive pings in order (``metadata["first_ping"]`` as the renderer
+        sets it), one shape of bins.
+    effects : Effects
+    seed : int, optional
+        Seed of the random stages (None: fresh entropy, recorded in each block's metadata).
+    ping_spacing : float
+        Along-track distance between pings, metres.
+
+    Yields
+    ------
+    SonarImage
+        Each block with the effects applied, its metadata kept (``effects`` added).
+    """
+    entropy = np.random.SeedSequence(seed).entropy
+    fx, halo = effects, None
+    tail: dict[str, np.ndarray] | None = None  # the raw pings before the held block
+    held: SonarImage | None = None
+    index = 0
+    for block in blocks:
+        if halo is None:
+            sigma, _ = _along_sigma(fx, block, ping_spacing, None)
+            halo = math.ceil(HALO_SIGMAS * float(np.max(sigma, initial=0.0)))
+        if held is not None:
+            out = _block_effects(held, tail, block, halo, fx, entropy, index, ping_spacing)
+            fx = _fixed_scale(fx, out)
+            tail = _tail(tail, held, halo)
+            index += 1
+            yield out
+        held = block
+    if held is not None:
+        yield _block_effects(held, tail, None, halo or 0, fx, entropy, index, ping_spacing)
+
+
+def _block_effects(
+    held: SonarImage,
+    before: dict[str, np.ndarray] | None,
+    after: SonarImage | None,
+    halo: int,
+    fx: Effects,
+    entropy: Any,
+    index: int,
+    ping_spacing: float,
+) -> SonarImage:
+    """``held`` with the effects applied over it and its halo, cropped back to its pings."""
+    lead = 0 if before is None else len(next(iter(before.values())))
+    sides = {}
+    for name, values in held.sides.items():
+        parts = [] if before is None else [before[name]]
+        parts.append(np.asarray(values))
+        if after is not None and halo > 0:
+            parts.append(np.asarray(after.sides[name])[:halo])
+        sides[name] = np.concatenate(parts)
+    state = np.random.SeedSequence([*np.atleast_1d(entropy).tolist(), index])
+    block_seed = int(state.generate_state(1, np.uint64)[0])
+    out = apply_effects(
+        SonarImage(sides, held.sonar, held.metadata), fx, seed=block_seed, ping_spacing=ping_spacing
+    )
+    rows = slice(lead, lead + held.shape[0])
+    meta = dict(out.metadata)
+    meta["effects"] = {**meta["effects"], "block": index, "halo_pings": halo}
+    return SonarImage({n: a[rows] for n, a in out.sides.items()}, out.sonar, meta)
+
+
+def _fixed_scale(fx: Effects, out: SonarImage) -> Effects:
+    """Later blocks clip and quantise at the full scale the first block chose."""
+    full = out.metadata["effects"].get("full_scale")
+    if full is None or fx.saturation is not None:
+        return fx
+    return replace(fx, saturation=float(full), headroom_db=None)
+
+
+def _tail(
+    tail: dict[str, np.ndarray] | None, held: SonarImage, halo: int
+) -> dict[str, np.ndarray] | None:
+    """The last ``halo`` raw pings before the next block (None without a halo)."""
+    if halo <= 0:
+        return None
+    joined = {
+        n: np.asarray(v) if tail is None else np.concatenate([tail[n], np.asarray(v)])
+        for n, v in held.sides.items()
+    }
+    return {n: v[-halo:] for n, v in joined.items()}
 
 
 def _volume_terms(

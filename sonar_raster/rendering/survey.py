@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import OpenImageIO as oiio
@@ -96,6 +97,8 @@ def render_survey(
     dynamic_range_db: float | None = None,
     metadata: dict | None = None,
     progress: bool = False,
+    effects: Any = None,
+    seed: int | None = None,
 ) -> tuple[list[Path], dict]:
     """Render a track block by block straight to EXR/PNG files, with a JSON sidecar per file.
 
@@ -117,6 +120,12 @@ def render_survey(
         Added to every file's metadata.
     progress : bool
         Show a progress bar over the blocks.
+    effects : Effects, optional
+        Sensor effects applied block by block
+        (:func:`~sonar_raster.effects.chain.apply_effects_blocks`: exact along track across
+        blocks, random fields drawn per block, the first block's full scale throughout).
+    seed : int, optional
+        Seed of the effects' random stages.
 
     Returns
     -------
@@ -143,18 +152,36 @@ def render_survey(
     temps: list[Path] = [exr_tmp] + ([xtf_tmp] if xtf_tmp else [])
     try:
         stats, summary, meta = _stream_blocks(
-            scene, sonar, trajectory, (exr_tmp, xtf_tmp), chunk_pings, backend, settings, progress
+            scene,
+            sonar,
+            trajectory,
+            (exr_tmp, xtf_tmp),
+            chunk_pings,
+            backend,
+            settings,
+            progress,
+            (effects, seed),
         )
         meta.update(metadata or {})
+        levelled = effects is not None  # as write_image shows an image with effects
         if dynamic_range_db is None:
-            dynamic_range_db = sio.auto_dynamic_range(stats)
-        _, ref = sio.display_mapping(stats, dynamic_range_db)
+            dynamic_range_db = sio.LEVELLED_RANGE_DB if levelled else sio.auto_dynamic_range(stats)
+        ref = None
+        if levelled:  # the median sits at mid-grey
+            positive = stats[stats > 0]
+            median = float(np.median(positive)) if positive.size else 1.0
+            ref = median * 10.0 ** (dynamic_range_db / 20.0)
+        _, ref = sio.display_mapping(stats, dynamic_range_db, ref)
         mapping = {
             "ref_level_m2": ref,
             "dynamic_range_db": float(dynamic_range_db),
             "formula": sio.MAPPING_FORMULA,
             "chosen_from": f"{len(stats)} evenly spaced pings",
         }
+        if levelled:
+            spacing = float(trajectory.typical_spacing) or None
+            geometry = {"columns": "slant range", "column_m": sonar.range_bin, "row_m": spacing}
+            mapping.update(level="median", palette="grey", geometry=geometry)
         header = SonarImage({s: np.zeros((1, 1), np.float32) for s in sonar.sides}, sonar, meta)
         jobs: list[tuple[Path, Path]] = []
         for path in paths:
@@ -192,6 +219,7 @@ def _stream_blocks(
     backend: str | None,
     settings: RasterSettings | None,
     progress: bool,
+    effects: tuple[Any, int | None] = (None, None),
 ) -> tuple[np.ndarray, dict, dict]:
     """Render into the temporary EXR (and XTF); return display rows, counters and metadata."""
     n_pings = trajectory.n_pings
@@ -204,6 +232,12 @@ def _stream_blocks(
     meta: dict = {}
     with RasterRenderer(backend, settings) as renderer:
         blocks = renderer.render_chunks(scene, sonar, trajectory, chunk_pings)
+        fx, seed = effects
+        if fx is not None:  # one block behind the renderer: each block sees its neighbours
+            from ..effects.chain import apply_effects_blocks
+
+            spacing = trajectory.typical_spacing
+            blocks = apply_effects_blocks(blocks, fx, seed=seed, ping_spacing=spacing)
         if progress:
             from tqdm import tqdm
 
@@ -230,6 +264,9 @@ def _stream_blocks(
                 xtf.close()
     writer.close()
     meta["survey"] = {"chunk_pings": chunk_pings, **summary}
+    if "effects" in meta:  # the last block's record, less what is per block
+        record = {k: v for k, v in meta["effects"].items() if k not in ("block", "seed")}
+        meta["effects"] = {**record, "seed": seed, "streamed": "apply_effects_blocks"}
     return np.concatenate(rows), summary, meta
 
 
