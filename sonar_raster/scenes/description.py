@@ -748,7 +748,10 @@ def _from_description(path: Path, ov: Overrides) -> SceneSetup:
 
 
 def _from_model(path: Path, ov: Overrides) -> SceneSetup:
-    """A bare model on a flat sandy seabed, mid-swath to starboard of a track passing it.
+    """A bare model on a sandy seabed, mid-swath to starboard of a track passing it.
+
+    The seabed has sand's micro-relief over the swath (unless ``ov.micro_relief`` is False,
+    or the swath is too large: then a plane).
 
     The model is turned and scaled by ``ov.placement``, its footprint centred at the placement's
     position (default: mid-swath to starboard of the track's middle ping); the automatic
@@ -799,6 +802,9 @@ def _from_model(path: Path, ov: Overrides) -> SceneSetup:
     reach = sonar.max_range + 10.0
     lo, hi = xy.min(axis=0) - reach, xy.max(axis=0) + reach
     seabed = make_seabed("flat", size=tuple(hi - lo), center=tuple(0.5 * (lo + hi)), depth=0.0)
+    notes: dict[str, Any] = {}
+    if ov.micro_relief is not False:  # sand's texture over what the swath sees
+        seabed = _bare_relief(seabed, traj, sonar, altitude, notes)
     scene = build_scene([seabed.mesh(DEFAULT_SEABED_REFLECTIVITY, "seabed"), *objects])
     placed = {
         "model": path.name,
@@ -817,7 +823,49 @@ def _from_model(path: Path, ov: Overrides) -> SceneSetup:
             "passing_m": ground_range,
         },
     }
-    return SceneSetup(scene, sonar, traj, str(path), altitude, notes={"placement": placed})
+    return SceneSetup(scene, sonar, traj, str(path), altitude, notes={"placement": placed, **notes})
+
+
+#: Most nodes of a bare model's micro-relief; a larger swath keeps the plane (noted).
+BARE_RELIEF_MAX_NODES = 4_000_000
+
+
+def _bare_relief(
+    plane: Heightfield, traj: Trajectory, sonar: Sonar, altitude: float, notes: dict
+) -> Heightfield:
+    """Sand's micro-relief on the part of the seabed the swath sees, or the plane if too big.
+
+    The patch covers each ping's swath (its ground range on both sides plus 2 m) and 3 m
+    beyond the track's ends; outside it the fans see no seabed anyway.
+    """
+    ground = math.sqrt(max(sonar.max_range**2 - altitude**2, 0.0)) + 2.0
+    h = traj.headings
+    starboard = np.stack([np.cos(h), -np.sin(h)], axis=1)
+    along = np.stack([np.sin(h), np.cos(h)], axis=1)
+    xy = traj.positions[:, :2]
+    ends = np.concatenate([xy[:1] - 3.0 * along[:1], xy[-1:] + 3.0 * along[-1:]])
+    corners = np.concatenate([xy + ground * starboard, xy - ground * starboard, ends])
+    lo, hi = corners.min(axis=0), corners.max(axis=0)
+    cell = MICRO_RESOLUTION_BINS * sonar.range_bin
+    nodes = math.prod(math.ceil(float(d) / cell) + 1 for d in hi - lo)
+    if nodes > BARE_RELIEF_MAX_NODES:  # noted, not warned: a huge swath is the user's choice
+        notes["seabed_micro_relief"] = {
+            "skipped": f"the swath needs {nodes} nodes at {cell:g} m (most "
+            f"{BARE_RELIEF_MAX_NODES}); a plane instead (a scene file sets the relief's extent)"
+        }
+        log.info("seabed micro-relief skipped: %s nodes", nodes)
+        return plane
+    patch = make_seabed("flat", size=tuple(hi - lo), center=tuple(0.5 * (lo + hi)), depth=0.0)
+    field = micro_relief(patch, "sand", resolution=cell)
+    notes["seabed_micro_relief"] = {
+        "sediment": "sand",
+        "resolution": cell,
+        "outer_scale": MICRO_OUTER_SCALE,
+        "seed": 0,
+        "cell_m": [field.dx, field.dy],
+        "extent_m": [float(v) for v in (*lo, *hi)],
+    }
+    return field
 
 
 def _auto_track(

@@ -167,3 +167,32 @@ def test_scene_file_micro_relief_errors(tmp_path, lines, match):
     with pytest.raises(SonarRasterError, match=match) as info:
         load_scene_file(_scene(tmp_path, lines))
     assert "\n" not in str(info.value)
+
+
+# -- bare model files -------------------------------------------------------------------------
+
+WEDGE_OBJ = """v 0 0 0\nv 2 0 0\nv 2 1 0\nv 0 1 0\nv 0 0 0.5\nv 0 1 0.5
+f 1 3 2\nf 1 4 3\nf 1 2 5\nf 4 6 3\nf 1 5 6\nf 1 6 4\nf 2 3 6\nf 2 6 5
+"""
+
+
+def test_a_bare_model_stands_on_sand_with_its_relief_over_the_swath(tmp_path):
+    from sonar_raster.scenes.description import load_scene
+
+    model = tmp_path / "wedge.obj"
+    model.write_text(WEDGE_OBJ, encoding="utf-8")
+    ov = {"max_range": 20.0, "range_bin": 0.05, "altitude": 5.0}
+    setup = load_scene(model, Overrides(**ov))
+    z = _seabed_z(setup)
+    assert 0.01 < np.std(z) < 0.05  # sand's relief, 2-3 cm rms
+    note = setup.notes["seabed_micro_relief"]
+    x0, y0, x1, y1 = note["extent_m"]
+    ground = math.sqrt(20.0**2 - 5.0**2) + 2.0
+    ys = setup.trajectory.positions[:, 1]
+    assert x0 == pytest.approx(-ground) and x1 == pytest.approx(ground)  # heading 0: x across
+    assert y0 == pytest.approx(ys.min() - 3.0) and y1 == pytest.approx(ys.max() + 3.0)
+    plane = load_scene(model, Overrides(**ov, micro_relief=False))
+    assert np.ptp(_seabed_z(plane)) == 0.0 and "seabed_micro_relief" not in plane.notes
+    huge = load_scene(model, Overrides(max_range=400.0, range_bin=0.02, altitude=5.0))
+    assert np.ptp(_seabed_z(huge)) == 0.0  # 16 M nodes: the plane, and the note says why
+    assert "a plane instead" in huge.notes["seabed_micro_relief"]["skipped"]
