@@ -467,6 +467,9 @@ MICRO_OUTER_SCALE = 1.0
 #: Default cell of the micro-relief, in range bins.
 MICRO_RESOLUTION_BINS = 1.5
 
+#: Most nodes of a micro-relief grid (20 M: about 4 GB while its mesh is built).
+MICRO_MAX_NODES = 20_000_000
+
 
 def micro_relief_spectrum(
     sediment: str, outer_scale: float = MICRO_OUTER_SCALE
@@ -532,7 +535,16 @@ def micro_relief(
     -------
     Heightfield
     """
-    fine = field.resampled(positive("micro_relief 'resolution'", resolution))
+    cell = positive("micro_relief 'resolution'", resolution)
+    xmin, xmax, ymin, ymax = field.extent
+    nodes = (_cells(xmax - xmin, cell)[0] + 1) * (_cells(ymax - ymin, cell)[0] + 1)
+    if nodes > MICRO_MAX_NODES:
+        raise SonarRasterError(
+            f"micro_relief at {cell:g} m over {xmax - xmin:g} m x {ymax - ymin:g} m needs "
+            f"{nodes:,} nodes (at most {MICRO_MAX_NODES:,}): give it a coarser resolution, or "
+            "a smaller seabed"
+        )
+    fine = field.resampled(cell)
     ny, nx = fine.shape
     spectrum = micro_relief_spectrum(sediment, outer_scale)
     rng = np.random.default_rng(_seed(seed))

@@ -85,6 +85,9 @@ def test_relief_rejects_bad_arguments():
         seabed.micro_relief(_flat(), "sand", resolution=0.0)
     with pytest.raises(SonarRasterError, match="seed"):
         seabed.micro_relief(_flat(), "sand", resolution=0.1, seed=-1)
+    with pytest.raises(SonarRasterError, match="coarser resolution") as info:
+        seabed.micro_relief(_flat((5000.0, 500.0)), "sand", resolution=0.05)  # 1e9 nodes
+    assert "\n" not in str(info.value)
 
 
 # -- in an image ---------------------------------------------------------------------------
