@@ -778,7 +778,8 @@ def apply_effects_blocks(
         sets it), one shape of bins.
     effects : Effects
     seed : int, optional
-        Seed of the random stages (None: fresh entropy, recorded in each block's metadata).
+        Seed of the random stages (None: fresh entropy); recorded in each block's metadata as
+        ``effects.stream_seed``, which gives the same blocks again.
     ping_spacing : float
         Along-track distance between pings, metres.
 
@@ -833,7 +834,12 @@ def _block_effects(
     )
     rows = slice(lead, lead + held.shape[0])
     meta = dict(out.metadata)
-    meta["effects"] = {**meta["effects"], "block": index, "halo_pings": halo}
+    meta["effects"] = {
+        **meta["effects"],
+        "block": index,
+        "halo_pings": halo,
+        "stream_seed": entropy,  # each block's seed derives from it and the block index
+    }
     return SonarImage({n: a[rows] for n, a in out.sides.items()}, out.sonar, meta)
 
 

@@ -266,7 +266,7 @@ def _stream_blocks(
     meta["survey"] = {"chunk_pings": chunk_pings, **summary}
     if "effects" in meta:  # the last block's record, less what is per block
         record = {k: v for k, v in meta["effects"].items() if k not in ("block", "seed")}
-        meta["effects"] = {**record, "seed": seed, "streamed": "apply_effects_blocks"}
+        meta["effects"] = {**record, "streamed": "apply_effects_blocks"}  # keeps stream_seed
     return np.concatenate(rows), summary, meta
 
 

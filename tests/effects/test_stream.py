@@ -86,6 +86,7 @@ def test_random_stages_keep_their_statistics_and_one_full_scale():
             assert cut.mean() / ref.mean() == pytest.approx(1.0, abs=0.02)
             contrast = np.mean(cut.std(axis=0) / cut.mean(axis=0))
             assert contrast == pytest.approx(np.mean(ref.std(axis=0) / ref.mean(axis=0)), abs=0.03)
+    assert {b.metadata["effects"]["stream_seed"] for b in blocks} == {1}
     again = _joined(apply_effects_blocks(_blocks(image, 64), fx, ping_spacing=0.1, seed=1))
     other = _joined(apply_effects_blocks(_blocks(image, 64), fx, ping_spacing=0.1, seed=2))
     assert np.array_equal(again["port"], got["port"]) and not np.array_equal(
