@@ -196,7 +196,6 @@ def simulate(real: RealPass, altitudes: np.ndarray, args: argparse.Namespace, be
     from sonar_raster import Trajectory, apply_effects, build_scene
     from sonar_raster.effects.presets import preset
     from sonar_raster.rendering.gl.raster import render_raster
-    from sonar_raster.scene import MeshPart
     from sonar_raster.scenes.seabed import MICRO_RESOLUTION_BINS, Heightfield, micro_relief
     from sonar_raster.scenes.sediments import material_index, material_reflectivity
     from sonar_raster.sonar import BeamPattern
@@ -205,18 +204,12 @@ def simulate(real: RealPass, altitudes: np.ndarray, args: argparse.Namespace, be
     n_pings = len(altitudes)
     length = n_pings * real.ping_spacing
     half = real.max_range + 5.0
-    v = np.array(
-        [[-half, -5.0, 0.0], [half, -5.0, 0.0], [half, length + 5, 0.0], [-half, length + 5, 0.0]]
-    )
-    law = material_index("sand") if args.law == "apl" else 0
-    seabed = MeshPart(
-        v, np.array([[0, 1, 2], [0, 2, 3]]), material_reflectivity("sand"), "seabed", True, law
-    )
+    field = Heightfield(np.zeros((2, 2)), -half, -5.0, 2.0 * half, length + 10.0)  # a plane
     if args.micro_relief == "on":  # the sand's own roughness spectrum, at the image's scales
-        field = Heightfield(np.zeros((2, 2)), -half, -5.0, 2.0 * half, length + 10.0)
         cell = args.relief_cell or MICRO_RESOLUTION_BINS * real.range_bin
         field = micro_relief(field, "sand", resolution=cell, seed=args.seed)
-        seabed = replace(field.mesh(material_reflectivity("sand")), is_seabed=True, law=law)
+    law = material_index("sand") if args.law == "apl" else 0
+    seabed = replace(field.mesh(material_reflectivity("sand")), is_seabed=True, law=law)
     sonar = p.sonar(real.max_range, real.range_bin)
     if beam is not None:
         sonar = replace(sonar, beam=BeamPattern.gaussian(beam), tilt=math.radians(tilt))

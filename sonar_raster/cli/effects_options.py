@@ -226,13 +226,13 @@ def display_from_args(args: argparse.Namespace, setup: Any) -> Any:
     )
 
 
-def effects_from_args(args: argparse.Namespace, scene_effects: Any, *, default: bool = True) -> Any:
+def effects_from_args(args: argparse.Namespace, scene_effects: Any) -> Any:
     """The Effects to apply: the sensor's or the scene's, with the options given on top.
 
     The base is ``--sensor``'s effects, else the scene's (its ``[effects]`` table, or the
-    effects of its ``[sonar] preset``), else, when ``default`` is true, those of the default
-    sensor; ``--ideal`` (or ``--no-effects``) makes the base empty. The options become an
-    ``[effects]`` table of the fields they set, read by
+    effects of its ``[sonar] preset``), else those of the default sensor; ``--ideal`` (or
+    ``--no-effects``) makes the base empty. The options become an ``[effects]`` table of the
+    fields they set, read by
     :meth:`~sonar_raster.effects.chain.Effects.from_table` over the base. Returns None when
     nothing is enabled, so the caller skips the effects step entirely.
 
@@ -242,8 +242,6 @@ def effects_from_args(args: argparse.Namespace, scene_effects: Any, *, default: 
         Parsed ``render`` options.
     scene_effects : Effects or None
         The scene's effects (``SceneSetup.effects``).
-    default : bool
-        Fall back on the default sensor's effects when neither names any.
     """
     from ..effects.chain import Effects
     from ..effects.presets import DEFAULT_SENSOR, preset
@@ -255,7 +253,7 @@ def effects_from_args(args: argparse.Namespace, scene_effects: Any, *, default: 
     elif scene_effects is not None:
         base = scene_effects
     else:
-        base = preset(DEFAULT_SENSOR).effects() if default else Effects()
+        base = preset(DEFAULT_SENSOR).effects()
     given = {field: getattr(args, dest) for field, dest in _FIELDS.items()}
     changes: dict[str, Any] = {k: v for k, v in given.items() if v is not None}
     if any(k in changes for k in _ALONG_MODES):  # the command line picks the along-track mode

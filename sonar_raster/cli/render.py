@@ -391,7 +391,7 @@ def run(args: argparse.Namespace) -> int:
     effects = effects_from_args(args, setup.effects)  # bad options fail before the render
     _check_size(args, setup, _streamed(args, setup), outputs)
     if _streamed(args, setup):
-        return _render_survey(args, setup, outputs)
+        return _render_survey(args, setup, outputs, effects)
     image = _render_image(args, setup)
     image.metadata.update(
         {"scene": setup.source, "altitude_m": setup.altitude, "pings": setup.trajectory.n_pings}
@@ -737,10 +737,9 @@ def _streamed(args: argparse.Namespace, setup: Any) -> bool:
     return args.chunk_pings is not None or cells > _STREAM_CELLS
 
 
-def _render_survey(args: argparse.Namespace, setup: Any, outputs: list[Path]) -> int:
+def _render_survey(args: argparse.Namespace, setup: Any, outputs: list[Path], effects: Any) -> int:
     from ..rendering.survey import render_survey
 
-    effects = effects_from_args(args, setup.effects)
     meta = {"scene": setup.source, "altitude_m": setup.altitude, "pings": setup.trajectory.n_pings}
     meta.update(setup.notes)
     written, summary = render_survey(

@@ -767,7 +767,7 @@ def apply_effects_blocks(
     back. What joins exactly: the along-track beam (while the halo fits in the next block),
     the water column, nadir gap, spreading, absorption, TVG and gain, all per ping. What
     differs from one whole image: the random fields (speckle, noise) are drawn per block from
-    ``SeedSequence([seed's entropy, block index])``, so their along-track correlation breaks
+    the block's child of ``SeedSequence(seed)``, so their along-track correlation breaks
     at block edges, and the full scale of ``headroom_db`` is the first block's (later blocks
     clip and quantise at the same level).
 
@@ -827,7 +827,7 @@ def _block_effects(
         if after is not None and halo > 0:
             parts.append(np.asarray(after.sides[name])[:halo])
         sides[name] = np.concatenate(parts)
-    state = np.random.SeedSequence([*np.atleast_1d(entropy).tolist(), index])
+    state = np.random.SeedSequence(entropy, spawn_key=(index,))  # the stream's block'th child
     block_seed = int(state.generate_state(1, np.uint64)[0])
     out = apply_effects(
         SonarImage(sides, held.sonar, held.metadata), fx, seed=block_seed, ping_spacing=ping_spacing

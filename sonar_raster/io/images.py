@@ -410,6 +410,17 @@ def image_jobs(
     return jobs
 
 
+def median_reference(values: np.ndarray, dynamic_range_db: float) -> float:
+    """The levelled display's reference (full white), ``median · 10^(DR / 20)``.
+
+    The median non-zero value of ``values`` then sits at mid-grey; 1 when nothing is positive.
+    """
+    positive = values[values > 0]
+    if not positive.size:
+        return 1.0
+    return float(np.median(positive)) * 10.0 ** (dynamic_range_db / 20.0)
+
+
 def _display(
     image: SonarImage, sides: dict[str, np.ndarray], display: Display, dr: float | None
 ) -> tuple[np.ndarray, dict[str, Any]]:
@@ -423,10 +434,7 @@ def _display(
     both = SonarImage(shown, image.sonar).display()
     if dr is None:
         dr = LEVELLED_RANGE_DB if level == "median" else auto_dynamic_range(both)
-    ref = None
-    if level == "median":
-        positive = both[both > 0]
-        ref = float(np.median(positive)) * 10.0 ** (dr / 20.0) if positive.size else 1.0
+    ref = median_reference(both, dr) if level == "median" else None
     codes, ref = display_mapping(both, dr, ref)
     mapping: dict[str, Any] = {
         "ref_level_m2": ref,

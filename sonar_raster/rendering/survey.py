@@ -166,11 +166,7 @@ def render_survey(
         levelled = effects is not None  # as write_image shows an image with effects
         if dynamic_range_db is None:
             dynamic_range_db = sio.LEVELLED_RANGE_DB if levelled else sio.auto_dynamic_range(stats)
-        ref = None
-        if levelled:  # the median sits at mid-grey
-            positive = stats[stats > 0]
-            median = float(np.median(positive)) if positive.size else 1.0
-            ref = median * 10.0 ** (dynamic_range_db / 20.0)
+        ref = sio.median_reference(stats, dynamic_range_db) if levelled else None
         _, ref = sio.display_mapping(stats, dynamic_range_db, ref)
         mapping = {
             "ref_level_m2": ref,

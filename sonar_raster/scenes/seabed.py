@@ -515,8 +515,9 @@ def micro_relief(
     resolution cell up: each facet's slope changes its grazing angle, so its backscatter, by
     more the lower the grazing angle, and the troughs behind crests fall in shadow. The relief
     is a Gaussian random field with :func:`micro_relief_spectrum` (the sediment's published
-    APL-UW spectrum, not a fitted level), made by spectral synthesis on a grid of cells no
-    larger than ``resolution`` and added to ``field`` resampled bilinearly onto that grid.
+    APL-UW spectrum, not a fitted level), made by spectral synthesis (as :func:`rough`) on a
+    grid of cells no larger than ``resolution``, its variance the spectrum integrated over that
+    grid's wavenumbers, and added to ``field`` resampled bilinearly onto that grid.
 
     Parameters
     ----------
@@ -546,19 +547,16 @@ def micro_relief(
         )
     fine = field.resampled(cell)
     ny, nx = fine.shape
+    grid = _Grid(nx, ny, fine.x0, fine.y0, fine.dx, fine.dy)
     spectrum = micro_relief_spectrum(sediment, outer_scale)
-    rng = np.random.default_rng(_seed(seed))
-    noise_hat = np.fft.rfft2(rng.standard_normal((ny, nx)))
-    dkx, dky = 2.0 * np.pi / (nx * fine.dx), 2.0 * np.pi / (ny * fine.dy)
+    # the field's variance is W integrated over the grid's wavenumbers (the mean left out)
     ky = 2.0 * np.pi * np.fft.fftfreq(ny, fine.dy)
-    kx = 2.0 * np.pi * np.fft.rfftfreq(nx, fine.dx)
-    k = np.hypot(ky[:, None], kx[None, :])
-    # irfft2 divides by N = nx ny, white noise has |n̂|² = N on average: a gain of
-    # √(N W dkx dky) gives the field the variance Σ W dkx dky, the integral of W over the grid's
-    # wavenumbers
-    gain = np.sqrt(nx * ny * spectrum(k) * dkx * dky)
-    gain[0, 0] = 0.0
-    relief = np.fft.irfft2(noise_hat * gain, s=(ny, nx))
+    kx = 2.0 * np.pi * np.fft.fftfreq(nx, fine.dx)
+    density = spectrum(np.hypot(ky[:, None], kx[None, :]))
+    density[0, 0] = 0.0
+    variance = float(density.sum()) * (2.0 * np.pi) ** 2 / (nx * fine.dx * ny * fine.dy)
+    rng = np.random.default_rng(_seed(seed))
+    relief = math.sqrt(variance) * _spectral_field(rng, grid, spectrum)
     return Heightfield(fine.z + relief, fine.x0, fine.y0, fine.dx, fine.dy)
 
 

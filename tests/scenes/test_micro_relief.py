@@ -199,3 +199,17 @@ def test_a_bare_model_stands_on_sand_with_its_relief_over_the_swath(tmp_path):
     huge = load_scene(model, Overrides(max_range=400.0, range_bin=0.02, altitude=5.0))
     assert np.ptp(_seabed_z(huge)) == 0.0  # 16 M nodes: the plane, and the note says why
     assert "a plane instead" in huge.notes["seabed_micro_relief"]["skipped"]
+
+
+def test_the_render_options_leave_the_relief_out():
+    """``--no-micro-relief`` and ``--ideal`` render the default scene's seabed as a plane."""
+    from sonar_raster.cli.app import _parser
+    from sonar_raster.cli.render import load_setup
+
+    def seabed_std(*options):
+        args = _parser().parse_args(["render", "default", "-o", "x.png", *options])
+        return float(np.std(_seabed_z(load_setup(args))))
+
+    assert seabed_std() > 0.01  # sand's relief, 2-3 cm
+    assert seabed_std("--no-micro-relief") == 0.0
+    assert seabed_std("--ideal") == 0.0
