@@ -15,10 +15,10 @@ from sonar_raster.inversion.surface import problem as problem_module
 from sonar_raster.inversion.surface.problem import soft_shadow
 
 
-def _problem(seed: int = 0, shadows: bool = True, lines: int = 1, pings: int = 10):
+def _problem(seed: int = 0, shadows: bool = True, lines: int = 1):
     """Random images on one line (or several overlapping ones) and parameters near the start."""
     rng = np.random.default_rng(seed)
-    bins, rb = 110, 0.1
+    pings, bins, rb = 10, 110, 0.1
     made = []
     for k in range(lines):
         images = {
@@ -127,7 +127,6 @@ def test_prior_gradients_match_central_differences_everywhere(lines):
     # ground in their shadows (held at the flat seabed)
     problem.objects = (rng.uniform(size=problem.kz) < 0.2).astype(float)
     problem.shadowed = ((rng.uniform(size=problem.kz) < 0.2) & (problem.objects == 0)) * 1.0
-    problem.outliers = (rng.uniform(size=problem.kz) < 0.2).astype(float)  # local relief
 
     def priors(q):
         grad = np.zeros_like(q)
@@ -147,37 +146,6 @@ def test_prior_gradients_match_central_differences_everywhere(lines):
     for block in blocks:  # Z, log R, log Φ: each to its own scale
         scale = np.abs(numeric[block]).max()
         assert np.allclose(grad[block], numeric[block], rtol=1e-4, atol=1e-5 * scale)
-
-
-def test_local_relief_leaves_the_line_profile_and_relief_priors():
-    """A mound on a few pings (not one spiking knot) is marked as local relief and left out
-    of the line's profile, so the line-profile prior does not pull it (or every other ping at
-    its range) down, and of the relief prior (with the marking off both pull: the test
-    fails)."""
-    problem, p, rng = _problem(1, shadows=False, pings=40)
-    problem.flat = np.zeros(problem.kz)
-    ky, kx = problem.kz
-    seen = problem._seen().reshape(problem.kz)
-    col = int(np.flatnonzero(seen.all(axis=0))[-8])
-    zc = np.zeros(problem.kz)
-    mound = (slice(ky // 2 - 1, ky // 2 + 2), slice(col - 1, col + 2))
-    zc[mound] = 0.5  # 3 x 3 knots, 0.5 m high
-    noisy = zc + rng.normal(0.0, 0.2 * problem.views[0].geom.range_bin, problem.kz)
-    noisy[ky // 2, col - 6] += 0.5  # nor is one knot of it
-    problem.mark_outliers(noisy)  # the fit's own noise is not local relief
-    marked = problem.outliers > 0
-    assert marked[mound].all() and marked[:, : col - 3].sum() == 0
-    assert marked[:, col + 4 :].sum() == 0
-    value, pull = problem_module.line_profile(problem, zc.ravel())
-    weights = problem.relief_weights()
-    problem.outliers[:] = 0.0
-    value_off, pull_off = problem_module.line_profile(problem, zc.ravel())
-    assert value < 0.01 * value_off
-    on = np.zeros(problem.kz, bool)
-    on[mound] = True
-    assert np.abs(pull.reshape(problem.kz)[on]).max() < 0.01 * np.abs(pull_off).max()
-    assert weights is not None and np.all(weights[marked] == 0.0)
-    assert np.all(problem.relief_weights()[marked] > 0.0)
 
 
 @functools.cache

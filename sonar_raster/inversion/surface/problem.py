@@ -47,18 +47,6 @@ SHADOW_GROUND_BINS = 1.0
 LINE_PROFILE_WEIGHT = 1.0
 #: Across-track scale of that prior's low-pass, as a fraction of the altitude.
 LINE_PROFILE_SCALE = 0.25
-#: Z knots whose deviation from the flat seabed lies further from the median of their
-#: across-track column (over the knots along the lines) than this many robust standard
-#: deviations (1.4826 MAD) of that column, and at least ``OUTLIER_BINS`` range bins, are local
-#: relief (a mound, a boulder): like objects found by their shadows they leave the line-profile
-#: prior's average and the relief prior (None: none are). Marked anew before each Gauss-Newton
-#: step from the surface it starts from.
-OUTLIER_MADS: float | None = 3.0
-OUTLIER_BINS = 2.0
-#: Only knots inside an OUTLIER_KNOTS x OUTLIER_KNOTS square of such knots are marked (sand
-#: waves, one line: without it 2-4 % of the knots, crests, were), none within two knots of the
-#: edge of what the views see (three lines on sand: 0.55 -> 0.65 with the few marked there).
-OUTLIER_KNOTS = 3
 
 
 @dataclass(frozen=True)
@@ -116,8 +104,6 @@ class Problem:
         the line-profile prior leaves them out of its line average, the relief prior off them.
     shadowed : ndarray, shape (ky, kx)
         1 on the Z knots of the ground in those objects' shadows: held near the flat seabed.
-    outliers : ndarray, shape (ky, kx)
-        1 on the Z knots of local relief (:meth:`mark_outliers`): left out like ``objects``.
     """
 
     def __init__(self, views: Sequence[View], grid: Grid, flat: np.ndarray) -> None:
@@ -128,7 +114,6 @@ class Problem:
         self.kz = (ky, kx)
         self.objects = np.zeros(self.kz)
         self.shadowed = np.zeros(self.kz)
-        self.outliers = np.zeros(self.kz)
         ry, rx = (len(k) for k in grid.knots("r"))
         self.kr = (ry, rx)
         self.nz = self.kz[0] * self.kz[1]
@@ -158,72 +143,23 @@ class Problem:
     def relief_weights(self) -> np.ndarray | None:
         """Per Z knot, the weight of ``(Z − flat)²`` in the priors, (ky, kx); None if none.
 
-        ``RELIEF_STD`` everywhere but on objects found by their shadows and on local relief
-        (:meth:`excluded`); on the ground in their shadows (where the data say nothing of Z)
-        ``SHADOW_GROUND_BINS``, as the shadow's height assumes a flat seabed there.
+        ``RELIEF_STD`` everywhere but on objects found by their shadows; on the ground in
+        their shadows (where the data say nothing of Z) ``SHADOW_GROUND_BINS``, as the shadow's
+        height assumes a flat seabed there.
         """
         w = np.zeros(self.kz)
         if RELIEF_STD is not None:
-            w += self.grid.z_spacing**2 / (2.0 * RELIEF_STD**2) * (1.0 - self.excluded())
+            w += self.grid.z_spacing**2 / (2.0 * RELIEF_STD**2) * (1.0 - self.objects)
         if self.shadowed.any():
             std = SHADOW_GROUND_BINS * self.views[0].geom.range_bin
             w += self.per_knot / (2.0 * std**2) * self.shadowed
         return w if w.any() else None
 
-    def excluded(self) -> np.ndarray:
-        """Z knots left out of the line-profile and relief priors: objects and outliers."""
-        return np.maximum(self.objects, self.outliers)
-
-    def mark_outliers(self, zc: np.ndarray) -> None:
-        """Set :attr:`outliers` from the Z knots ``zc`` (ky, kx) (``OUTLIER_MADS``).
-
-        Per across-track column of seen knots (not at the edge of what the views see, nor
-        near a nadir), the deviation from the flat seabed is compared with its median over the
-        column; knots beyond the threshold that fill a square of ``OUTLIER_KNOTS`` (compact
-        relief, not a knot of noise or a crest: left out, one tail of a wave field would bias
-        the line's average) are marked, dilated by two knots (the reach of a cubic basis).
-        Averaged into the line's profile, a mound pulls itself and every other ping at its
-        range towards the flat seabed.
-        """
-        self.outliers = np.zeros(self.kz)
-        if OUTLIER_MADS is None:
-            return
-        # knots at the edge of what the views see are held by few cells, and those near a
-        # nadir by the anchor, whose relief the fit there cannot tell from its own noise
-        # (the fold): never marked
-        seen = ndimage.binary_erosion(self._seen().reshape(self.kz), iterations=2)
-        seen &= ~self._near_nadir().reshape(self.kz)
-        d = np.where(seen, zc - self.flat, np.nan)
-        counted = seen.any(axis=0)
-        if not counted.any():
-            return
-        med = np.zeros(self.kz[1])
-        mad = np.zeros(self.kz[1])
-        med[counted] = np.nanmedian(d[:, counted], axis=0)
-        mad[counted] = 1.4826 * np.nanmedian(np.abs(d[:, counted] - med[counted]), axis=0)
-        floor = OUTLIER_BINS * self.views[0].geom.range_bin
-        far = seen & (np.abs(np.nan_to_num(d) - med) > np.maximum(OUTLIER_MADS * mad, floor))
-        if OUTLIER_KNOTS > 1:  # compact relief only: not single knots of noise or a crest
-            far = ndimage.binary_opening(far, np.ones((OUTLIER_KNOTS, OUTLIER_KNOTS), bool))
-        self.outliers = ndimage.binary_dilation(far, iterations=2).astype(np.float64)
-
-    def _near_nadir(self) -> np.ndarray:
-        """Z knots under cells within twice the nadir's fold ``√(2 h Δ)`` of a nadir, (nz,)."""
-        near = np.zeros(self.nz, bool)
-        for v in self.views:
-            fold = math.sqrt(2.0 * float(np.nanmedian(v.altitude)) * v.geom.range_bin)
-            rows = np.tile(v.geom.x < 2.0 * fold, v.shape[0])
-            near |= np.asarray(abs(v.bz[rows]).sum(axis=0)).ravel() > 0
-        return near
-
-    def _seen(self) -> np.ndarray:
+    def _seen_knots(self) -> int:
         seen = np.zeros(self.nz, bool)
         for v in self.views:
             seen |= np.asarray(abs(v.bz).sum(axis=0)).ravel() > 0
-        return seen
-
-    def _seen_knots(self) -> int:
-        return int(self._seen().sum())
+        return int(seen.sum())
 
     def scales(self) -> np.ndarray:
         """Typical step of each parameter: a range bin for Z, 0.1 in log R and log Φ."""
@@ -471,13 +407,12 @@ def line_profile(problem: Problem, dev: np.ndarray) -> tuple[float, np.ndarray]:
     low-passed (a smooth Φ absorbs only a broad bend), is held at zero. Cells on
     ``problem.objects`` are left out of the average (an object raises its own pings, not the
     line's bend; averaged in, it pulls every other ping at its range down, most where nothing
-    else holds them: in its shadow), and so are ``problem.outliers`` (local relief). Quadratic
-    in ``dev``, so its gradient at ``v`` is also its Hessian times ``v``. Returns the value and
-    the gradient (nz,).
+    else holds them: in its shadow). Quadratic in ``dev``, so its gradient at ``v`` is also its
+    Hessian times ``v``. Returns the value and the gradient (nz,).
     """
     value, grad = 0.0, np.zeros(problem.nz)
     spacing = problem.grid.z_spacing
-    objects = problem.excluded().ravel()
+    objects = problem.objects.ravel()
     for view in problem.views:
         pings, cells = view.shape
         d = np.asarray(view.bz @ dev).reshape(pings, cells)

@@ -914,7 +914,6 @@ def _gauss_newton(
     free[nz:] = True
     if CREST_OFFSET:
         _track_model(problem, p)
-    problem.mark_outliers(p[:nz].reshape(problem.kz))
     value, grad = problem(p)
     count, damping = 1, 1e-3
     for k in range(int(steps)):
@@ -937,10 +936,8 @@ def _gauss_newton(
         damping = damping * 0.3 if accepted else damping * 10.0
         p, value, n = _minimise(problem, p, INNER_ITERATIONS, free)
         count += n
-        if k + 1 < steps:  # the next step's anchor and outliers, at the surface it starts from
-            if CREST_OFFSET:
-                _track_model(problem, p)
-            problem.mark_outliers(p[:nz].reshape(problem.kz))
+        if CREST_OFFSET and k + 1 < steps:  # the next step's anchor, at the surface it starts from
+            _track_model(problem, p)
             value, grad = problem(p)
         else:
             grad = problem(p)[1]
