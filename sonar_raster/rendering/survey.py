@@ -160,7 +160,8 @@ def render_survey(
             backend,
             settings,
             progress,
-            (effects, seed),
+            effects=effects,
+            seed=seed,
         )
         meta.update(metadata or {})
         levelled = effects is not None  # as write_image shows an image with effects
@@ -215,7 +216,9 @@ def _stream_blocks(
     backend: str | None,
     settings: RasterSettings | None,
     progress: bool,
-    effects: tuple[Any, int | None] = (None, None),
+    *,
+    effects: Any = None,
+    seed: int | None = None,
 ) -> tuple[np.ndarray, dict, dict]:
     """Render into the temporary EXR (and XTF); return display rows, counters and metadata."""
     n_pings = trajectory.n_pings
@@ -228,12 +231,11 @@ def _stream_blocks(
     meta: dict = {}
     with RasterRenderer(backend, settings) as renderer:
         blocks = renderer.render_chunks(scene, sonar, trajectory, chunk_pings)
-        fx, seed = effects
-        if fx is not None:  # one block behind the renderer: each block sees its neighbours
+        if effects is not None:  # one block behind the renderer: each block sees its neighbours
             from ..effects.chain import apply_effects_blocks
 
             spacing = trajectory.typical_spacing
-            blocks = apply_effects_blocks(blocks, fx, seed=seed, ping_spacing=spacing)
+            blocks = apply_effects_blocks(blocks, effects, seed=seed, ping_spacing=spacing)
         if progress:
             from tqdm import tqdm
 

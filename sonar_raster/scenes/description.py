@@ -856,12 +856,15 @@ def _bare_relief(
         log.info("seabed micro-relief skipped: %s nodes", nodes)
         return plane
     patch = make_seabed("flat", size=tuple(hi - lo), center=tuple(0.5 * (lo + hi)), depth=0.0)
-    field = micro_relief(patch, "sand", resolution=cell)
-    notes["seabed_micro_relief"] = {
+    relief: dict[str, Any] = {
         "sediment": "sand",
         "resolution": cell,
         "outer_scale": MICRO_OUTER_SCALE,
         "seed": 0,
+    }
+    field = micro_relief(patch, **relief)
+    notes["seabed_micro_relief"] = {
+        **relief,
         "cell_m": [field.dx, field.dy],
         "extent_m": [float(v) for v in (*lo, *hi)],
     }
