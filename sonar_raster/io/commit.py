@@ -69,8 +69,10 @@ def check_can_create(folder: Path, what: str | None = None) -> None:
     """Raise unless a new file can be made in ``folder`` (a probe is made and removed at once).
 
     Catches read-only and pseudo file systems such as /proc, where permission bits lie.
-    ``what`` starts the error message (default ``"cannot write into <folder>"``).
+    ``what`` starts the error message (default ``"cannot write into <folder>"``). Probes left
+    by runs killed between making and removing theirs are removed (:func:`sweep_stale`).
     """
+    sweep_stale(folder / "probe")
     probe = temp_name(folder / "probe")
     try:
         with open(probe, "xb"):

@@ -292,6 +292,17 @@ def test_stale_temporaries_are_removed_only_when_their_owner_is_gone(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in (mine, live, other))
 
 
+def test_a_probe_left_by_a_killed_run_is_removed_by_the_next_check(tmp_path):
+    from sonar_raster.io.commit import check_writable
+
+    dead = tmp_path / f".probe.sr{2**22 + 7}-{'e' * 12}"  # above pid_max: never alive
+    live = tmp_path / f".probe.sr{os.getppid()}-{'f' * 12}"
+    for path in (dead, live):
+        path.write_bytes(b"")
+    check_writable(tmp_path / "out.png")
+    assert sorted(p.name for p in tmp_path.iterdir()) == [live.name]
+
+
 def _descendants(pid: int) -> set[int]:
     import psutil
 
