@@ -43,6 +43,12 @@ def read_side(path: Path, side: str | None) -> tuple[np.ndarray, str, dict]:
         data = _read_png(path)
     if data.ndim != 2:
         raise SonarRasterError(f"{path}: expected a 2-D image (pings x bins), got {data.shape}")
+    if np.iscomplexobj(data):
+        raise SonarRasterError(
+            f"{path}: complex values (amplitudes?); give intensities, e.g. np.abs(a) ** 2"
+        )
+    if not (np.issubdtype(data.dtype, np.number) or data.dtype == np.bool_):
+        raise SonarRasterError(f"{path}: expected numbers, got dtype {data.dtype}")
     return np.asarray(data, dtype=np.float64), side or "starboard", {}
 
 

@@ -239,7 +239,7 @@ def _setup(lines, looks, z_knot, r_knot, levels):
     check_lines(lines)
     prepared = []
     for line in lines:
-        images = {n: check_slant(v, line.range_bin) for n, v in line.sides.items()}
+        images = {n: check_slant(v, line.range_bin, min_pings=2) for n, v in line.sides.items()}
         if line.altitude is None:
             alt = track_bottom(images, line.range_bin).altitude
         else:
