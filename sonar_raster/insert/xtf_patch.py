@@ -15,13 +15,14 @@ counts when it has a port or starboard channel), and the result is read back wit
 from __future__ import annotations
 
 import ctypes
+import logging
 import shutil
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import SonarRasterError
-from ..io.xtf import XTF_MAGIC, XtfReader, read_xtf
+from ..io.xtf import XtfReader, read_xtf
 
 __all__ = ["encode_samples", "patch_xtf"]
 
@@ -55,11 +56,6 @@ def encode_samples(values: np.ndarray, dtype: np.dtype, weight: int) -> tuple[np
     codes = np.rint(scaled)
     clipped = int(np.count_nonzero(codes > top))
     return np.clip(codes, 0, top).astype(dtype), clipped
-
-
-def _header_bytes(reader: XtfReader) -> int:
-    n = reader.header.channel_count()
-    return 1024 * (1 + (n - 1) // 6) if n > 6 else 1024
 
 
 def _sample_dtype(info: object) -> np.dtype:
@@ -137,20 +133,16 @@ def patch_xtf(
     """
     with XtfReader(src) as reader:
         data = bytearray(Path(src).read_bytes())
-        pos, index, clipped = _header_bytes(reader), 0, 0
+        index, clipped = 0, 0
         stored: dict[int, dict[str, np.ndarray]] = {}
-        start_size = 14
-        while pos + start_size <= len(data):
-            magic = int.from_bytes(data[pos : pos + 2], "little")
-            size = int.from_bytes(data[pos + 10 : pos + 14], "little")
-            if magic != XTF_MAGIC or size < start_size or pos + size > len(data):
-                break
-            if data[pos + 2] == 0:  # a sonar packet
-                new = samples.get(index, {})
-                is_ping, n = _patch_packet(data, pos, reader, new, stored.setdefault(index, {}))
-                clipped += n
-                index += int(is_ping)
-            pos += size
+        for pos, raw in reader.packets():  # damaged frames count as pings, as the reader has it
+            if isinstance(raw, Exception):
+                index += 1
+                continue
+            new = samples.get(index, {})
+            is_ping, n = _patch_packet(data, pos, reader, new, stored.setdefault(index, {}))
+            clipped += n
+            index += int(is_ping)
     with open(dst, "wb") as fh:
         fh.write(data)
     _verify(Path(src), Path(dst), samples, stored)
@@ -159,7 +151,13 @@ def patch_xtf(
 
 def _verify(src: Path, dst: Path, samples: dict, stored: dict) -> None:
     """Read ``dst`` back: each patched ping must hold exactly the values encoded into it."""
-    image, _ = read_xtf(dst)
+    reader_log = logging.getLogger(read_xtf.__module__)
+    level = reader_log.level
+    reader_log.setLevel(logging.ERROR)  # what it skips was said when the source was read
+    try:
+        image, _ = read_xtf(dst)
+    finally:
+        reader_log.setLevel(level)
     rows = {int(k): r for r, k in enumerate(image.metadata["ping_indices"])}
     for index, sides in samples.items():
         for side in sides:

@@ -23,6 +23,8 @@ def check_slant(slant: np.ndarray, range_bin: float, min_pings: int = 1) -> np.n
         raise SonarRasterError(
             f"image must be 2-D with >= {min_pings} ping(s) and >= 4 range bins, got {a.shape}"
         )
+    if np.iscomplexobj(a):
+        raise SonarRasterError("image is complex (amplitudes?); give intensities, |a|²")
     if not np.issubdtype(a.dtype, np.number) or not np.all(np.isfinite(a)):
         raise SonarRasterError("image must hold finite numbers")
     if np.any(a < 0):

@@ -30,8 +30,10 @@ from the running median of their neighbours than :data:`MAX_SPEED` allows (a GPS
 rejected and interpolated like pings without navigation; so are heading spikes beyond
 :data:`MAX_TURN_RATE` and the few times out of order (a clock reset to a real date).
 :func:`read_xtf` logs one warning line saying what it skipped or repaired and lists it in the
-image's metadata; only a broken packet frame (no marker, truncated) or a file with no usable
-ping is an error.
+image's metadata. A damaged packet frame (no marker, an empty packet, one running past the
+file's end) costs one ping, skipped like the others, and reading goes on at the next correctly
+framed packet; only a file that starts damaged with nothing good after it, or with no usable
+ping, is an error.
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ import datetime
 import logging
 import math
 import os
+import struct
 from collections import Counter
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -187,10 +190,11 @@ class XtfReader:
     """Stream the side-scan pings of an XTF file, one at a time.
 
     Use as a context manager; iterating yields :class:`XtfPing` in file order. The file header
-    is checked on opening and each packet as it is read, so a wrong, empty or truncated file
-    raises :class:`SonarRasterError` naming the file and the byte offset. A packet that is
-    framed correctly but holds an impossible field is skipped and listed in :attr:`skipped`;
-    a file none of whose pings is usable raises.
+    is checked on opening and each packet as it is read, so a wrong or empty file, or one whose
+    first packet is damaged with no good one after it, raises :class:`SonarRasterError` naming
+    the file and the byte offset. A damaged frame further on, and a packet that is framed
+    correctly but holds an impossible field, is skipped and listed in :attr:`skipped`; a file
+    none of whose pings is usable raises.
 
     Parameters
     ----------
@@ -246,7 +250,11 @@ class XtfReader:
             )
         n = header.channel_count()
         if n > 6:  # each further 6 channels add 1024 bytes of ChanInfo
-            self._fh.seek(_FILE_HEADER_BYTES * (1 + (n - 1) // 6))
+            first = _FILE_HEADER_BYTES * (1 + (n - 1) // 6)
+            self._fh.seek(first)
+            if self._fh.read(2) != struct.pack("<H", XTF_MAGIC):  # a wrong count: see packets
+                first = _FILE_HEADER_BYTES
+            self._fh.seek(first)
         return header
 
     def __enter__(self) -> XtfReader:
@@ -265,8 +273,10 @@ class XtfReader:
         if self._fh is None:
             raise SonarRasterError(f"{self.path}: the reader is closed")
         index = 0
-        for offset, raw in self._packets():
+        for offset, raw in self.packets():
             try:
+                if not isinstance(raw, bytes):
+                    raise raw
                 ping = self._ping(raw, index)
             except _BadPacket as bad:
                 self.skipped.append(SkippedPing(index, bad.kind, f"{bad.detail} at byte {offset}"))
@@ -282,39 +292,87 @@ class XtfReader:
                 f"{self.path} has no usable side-scan ping: {skip_summary(self.skipped, index)}"
             )
 
-    def _packets(self) -> Iterator[tuple[int, bytes]]:
-        """(offset, bytes) of each side-scan packet; others are skipped unread."""
+    def packets(self) -> Iterator[tuple[int, bytes | Exception]]:
+        """(offset, bytes) of each sonar packet, from the first; others are skipped unread.
+
+        A damaged frame (no packet marker, an empty packet, one that runs past the file's end)
+        comes as (offset, an exception saying what is wrong), which the reader counts as a
+        skipped ping, and reading goes on at the next correctly framed packet
+        (:meth:`_next_packet`); with none, the file ends there (a recorder stopped in the middle
+        of a write, a tail of zeros or junk). Raises when the first packet is damaged and none
+        follows (a truncated or non-XTF file).
+        """
         pyxtf = _pyxtf()
         fh = self._fh
         assert fh is not None
         start_size = ctypes.sizeof(pyxtf.XTFPacketStart)
+        first, seen = True, False  # at the first packet; any packet yielded
         while True:
             offset = fh.tell()
             head = fh.read(start_size)
             if not head:
                 return
+            bad = None
             if len(head) < start_size:
-                raise self._truncated(offset, start_size)
-            start = pyxtf.XTFPacketStart.from_buffer_copy(head)
-            if start.MagicNumber != XTF_MAGIC:
-                raise SonarRasterError(
-                    f"{self.path} is corrupt or not XTF: no packet marker (0xFACE) at byte {offset}"
-                )
-            size = int(start.NumBytesThisRecord)
-            if size < start_size:
-                raise SonarRasterError(f"{self.path} is corrupt: packet at byte {offset} is empty")
-            if offset + size > self._size:
-                raise self._truncated(offset, size)
+                bad = _BadPacket("truncated", f"the file ends {len(head)} bytes into a packet")
+            else:
+                start = pyxtf.XTFPacketStart.from_buffer_copy(head)
+                size = int(start.NumBytesThisRecord)
+                if start.MagicNumber != XTF_MAGIC:
+                    bad = _BadPacket("corrupt", "no packet marker (0xFACE)")
+                elif size < start_size:
+                    bad = _BadPacket("corrupt", "an empty packet")
+                elif offset + size > self._size:
+                    left = self._size - offset
+                    bad = _BadPacket("truncated", f"a packet of {size} bytes, {left} left")
+            if bad is not None:
+                # the first packet may sit at byte 1024 whatever the header's channel count says
+                resume = self._next_packet(_FILE_HEADER_BYTES if first else offset + 1)
+                if resume is None and not seen:
+                    what = "is truncated" if bad.kind == "truncated" else "is corrupt or not XTF"
+                    raise SonarRasterError(f"{self.path} {what}: {bad} at byte {offset}")
+                if resume != _FILE_HEADER_BYTES or not first:
+                    seen = True
+                    yield offset, bad
+                if resume is None:
+                    return
+                fh.seek(resume)
+                first = False
+                continue
+            first = False
             if start.HeaderType != _SONAR_PACKET:
                 fh.seek(offset + size)
                 continue
+            seen = True
             yield offset, head + fh.read(size - start_size)
 
-    def _truncated(self, offset: int, size: int) -> SonarRasterError:
-        return SonarRasterError(
-            f"{self.path} is truncated: the packet at byte {offset} needs {size} bytes, "
-            f"{self._size - offset} are left"
-        )
+    def _next_packet(self, begin: int) -> int | None:
+        """Offset of the first correctly framed packet at or after ``begin``, or None.
+
+        Framed correctly: its marker, a size of at least a packet start that ends within the
+        file, and at its end the file's end or another marker (so a marker that happens to lie
+        in sample data is not taken). Reads the file on in 1 MiB blocks.
+        """
+        fh = self._fh
+        assert fh is not None
+        marker = struct.pack("<H", XTF_MAGIC)
+        block = 1 << 20
+        here = begin
+        while here < self._size:
+            fh.seek(here)
+            data = fh.read(block + 1)  # one byte more: a marker across the blocks' seam
+            at = data.find(marker)
+            while 0 <= at < block:
+                fh.seek(here + at + 10)
+                size = struct.unpack("<I", (fh.read(4) + bytes(4))[:4])[0]
+                end = here + at + size
+                if size >= 14 and end <= self._size:
+                    fh.seek(end)
+                    if end == self._size or fh.read(2) == marker:
+                        return here + at
+                at = data.find(marker, at + 1)
+            here += block
+        return None
 
     def _ping(self, raw: bytes, index: int) -> XtfPing | None:
         """The ping of a sonar packet, None without side-scan channels; _BadPacket if unusable."""
@@ -705,9 +763,9 @@ def read_xtf(
     Raises
     ------
     SonarRasterError
-        For a file that is missing, empty, not XTF, truncated, has no usable side-scan ping in
-        the range, or whose sample spacing or sample count changes between pings for longer
-        than a glitch (:data:`GLITCH_RUN`).
+        For a file that is missing, empty, not XTF, damaged from its first packet on, has no
+        usable side-scan ping in the range, or whose sample spacing or sample count changes
+        between pings for longer than a glitch (:data:`GLITCH_RUN`).
 
     Notes
     -----
@@ -826,16 +884,7 @@ def _drop_glitches(rows: list[XtfPing], path: Path) -> tuple[list[XtfPing], list
     edges = np.diff(np.concatenate([[0], odd.astype(np.int8), [0]]))
     longest = int(np.max(np.flatnonzero(edges < 0) - np.flatnonzero(edges > 0)))
     if longest > GLITCH_RUN or odd.sum() > max(GLITCH_RUN, len(rows) // 10):
-        p = rows[int(np.argmax(odd))]
-        if _layout(p)[0] != usual[0]:
-            raise SonarRasterError(
-                f"{path}: ping {p.index} has other sides or sample counts than ping "
-                f"{ref.index}; read ping ranges with one setting (pings=slice(a, b))"
-            )
-        raise SonarRasterError(
-            f"{path}: the sample spacing changes at ping {p.index} ({ref.range_bin:.5g} "
-            f"to {p.range_bin:.5g} m); read ping ranges with one setting (pings=slice(a, b))"
-        )
+        raise SonarRasterError(_setting_change(rows, keys, path))
     skipped = []
     for p, bad in zip(rows, odd, strict=True):
         if bad:
@@ -849,6 +898,39 @@ def _drop_glitches(rows: list[XtfPing], path: Path) -> tuple[list[XtfPing], list
             )
             skipped.append(SkippedPing(p.index, "layout", detail))
     return [p for p, bad in zip(rows, odd, strict=True) if not bad], skipped
+
+
+def _setting_change(rows: list[XtfPing], keys: list[Any], path: Path) -> str:
+    """One line naming where the sonar's setting first changes and the runs of one setting."""
+    runs: list[tuple[int, int]] = []  # [start, stop) in rows; glitches of a few pings merge
+    start = 0
+    for k in range(1, len(rows) + 1):
+        if k == len(rows) or keys[k] != keys[start]:
+            if runs and k - start <= GLITCH_RUN:
+                runs[-1] = (runs[-1][0], k)
+            else:
+                runs.append((start, k))
+            start = k
+    change = next(k for k in range(1, len(rows)) if keys[k] != keys[k - 1])
+    a, b = rows[change - 1], rows[change]
+    if _layout(a)[0] != _layout(b)[0]:
+        was = ", ".join(f"{s} {len(v)}" for s, v in a.sides.items())
+        now = ", ".join(f"{s} {len(v)}" for s, v in b.sides.items())
+        what = f"the sides or sample counts change at ping {b.index} ({was} to {now} samples)"
+    else:
+        what = (
+            f"the sample spacing changes at ping {b.index} "
+            f"({a.range_bin:.5g} to {b.range_bin:.5g} m)"
+        )
+    shown = [f"{rows[i].index}:{rows[j - 1].index + 1}" for i, j in runs[:4]]
+    if len(runs) < 2:  # it changes back and forth: no long run of either
+        changes = sum(keys[k] != keys[k - 1] for k in range(1, len(rows)))
+        return f"{path}: {what}, and {changes} times in all; the file cannot be read as one image"
+    more = ", ..." if len(runs) > 4 else ""
+    return (
+        f"{path}: {what}; read one setting at a time, e.g. --pings {' or --pings '.join(shown[:2])}"
+        f" (runs of one setting: {', '.join(shown)}{more}; Python: pings=slice(a, b))"
+    )
 
 
 def _navigation(rows: list[XtfPing], units: str) -> XtfNavigation:

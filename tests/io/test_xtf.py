@@ -222,19 +222,16 @@ def _bad_files(tmp: Path) -> dict[str, tuple[Path, str]]:
         files["header only"] = (tmp / "header_only.xtf", "no side-scan pings")
         (tmp / "cut_first.xtf").write_bytes(data[: 1024 + 100])
         files["cut in first ping"] = (tmp / "cut_first.xtf", "truncated")
-        (tmp / "cut_middle.xtf").write_bytes(data[: 1024 + 200 * 4480 + 3000])
-        files["cut mid-file"] = (tmp / "cut_middle.xtf", "truncated")
-        broken = bytearray(data)
-        broken[1024 + 3 * 4480] = 0  # the packet marker of ping 3
+        broken = bytearray(data[: 1024 + 4480])
+        broken[1024] = 0  # the packet marker of the only ping
         (tmp / "broken.xtf").write_bytes(bytes(broken))
-        files["no packet marker"] = (tmp / "broken.xtf", "0xFACE")
-    return files
+        files["no packet marker"] = (tmp / "broken.xtf", "corrupt or not XTF: no packet marker")
+    return files  # damage after a good ping loses a ping, not the file: test_xtf_faults.py
 
 
 @pytest.mark.parametrize(
     "case",
-    ["empty", "text", "tiny", "header only", "cut in first ping", "cut mid-file"]
-    + ["no packet marker"],
+    ["empty", "text", "tiny", "header only", "cut in first ping", "no packet marker"],
 )
 def test_bad_files_raise_one_clear_error(tmp_path, case):
     files = _bad_files(tmp_path)
@@ -245,7 +242,7 @@ def test_bad_files_raise_one_clear_error(tmp_path, case):
         read_xtf(path)
 
 
-@pytest.mark.parametrize("case", ["empty", "text", "cut mid-file"])
+@pytest.mark.parametrize("case", ["empty", "text", "cut in first ping"])
 @pytest.mark.parametrize("command", ["track", "invert"])
 def test_cli_bad_files_exit_2_and_write_nothing(tmp_path, capsys, case, command):
     (tmp_path / "in").mkdir()

@@ -120,6 +120,82 @@ def test_reader_skips_or_repairs_the_bad_ping(tmp_path, caplog, clean, fault):
     assert abs(nav.time[k] - clean_nav.time[k]) < 0.2
 
 
+# name: the file's bytes -> damaged bytes; the ping lost (None: none); words of the report
+FRAMES = {
+    "cut in a packet": (lambda d, at: d[: at[400] + 3000], 400, "truncated: ping 400 a packet"),
+    "cut in a packet start": (lambda d, at: d[: at[400] + 8], 400, "the file ends 8 bytes into"),
+    "zeros after the end": (lambda d, at: d + bytes(5000), 461, "no packet marker"),
+    "marker lost": (lambda d, at: d[: at[200]] + b"\0" + d[at[200] + 1 :], 200, "0xFACE"),
+    "packet 64 bytes too long": (  # ping 200 reads right; ping 201 is lost finding the next
+        lambda d, at: _set_size(d, at[200], 4480 + 64),
+        201,
+        "corrupt: ping 201 no packet marker",
+    ),
+    "packet empty": (lambda d, at: _set_size(d, at[200], 8), 200, "an empty packet"),
+    "packet past the end": (lambda d, at: _set_size(d, at[200], 2**32 - 16), 200, "truncated"),
+    "channel count 7": (  # a header count beyond 6 puts the first packet past byte 2048
+        lambda d, at: d[:166] + (7).to_bytes(2, "little") + d[168:],  # NumberOfSonarChannels
+        None,
+        "",
+    ),
+}
+
+
+def _set_size(data: bytes, at: int, size: int) -> bytes:
+    buf = bytearray(data)
+    put(buf, at, pyxtf.XTFPacketStart, "NumBytesThisRecord", size)
+    return bytes(buf)
+
+
+@pytest.mark.parametrize("fault", FRAMES)
+def test_a_damaged_frame_loses_one_ping_and_the_rest_is_read(tmp_path, caplog, clean, fault):
+    damage, lost, words = FRAMES[fault]
+    data = SAMPLE.read_bytes()
+    path = tmp_path / "damaged.xtf"
+    path.write_bytes(damage(data, packet_offsets(data)))
+    image, nav = read_xtf(path)
+    rows = list(range(lost)) if fault.startswith("cut") else [i for i in range(461) if i != lost]
+    assert image.metadata["ping_indices"] == rows  # the file's ping numbers are kept
+    clean_image, clean_nav = clean
+    for side in ("port", "starboard"):
+        np.testing.assert_array_equal(image.sides[side], clean_image.sides[side][rows])
+    np.testing.assert_array_equal(nav.time, clean_nav.time[rows])
+    if lost is None:
+        assert [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING] == []
+    else:
+        reports(caplog, lost, words)
+        assert [s["index"] for s in image.metadata["skipped_pings"]] == [lost]
+
+
+def test_a_damaged_frame_in_a_copy_with_new_samples(tmp_path, clean):
+    from sonar_raster.insert.xtf_patch import patch_xtf
+
+    data = SAMPLE.read_bytes()
+    at = packet_offsets(data)
+    path = tmp_path / "damaged.xtf"
+    path.write_bytes(data[: at[3]] + b"\0" + data[at[3] + 1 :])  # ping 3 lost
+    new = clean[0].sides["port"][10] * 0.5
+    patch_xtf(path, tmp_path / "out.xtf", {10: {"port": new}})  # reads its copy back itself
+    image, _ = read_xtf(tmp_path / "out.xtf")
+    rows = [i for i in range(461) if i != 3]
+    changed = np.flatnonzero(np.any(image.sides["port"] != clean[0].sides["port"][rows], axis=1))
+    assert [rows[i] for i in changed] == [10]  # the ping the reader calls 10, not the 10th read
+    assert np.max(np.abs(image.sides["port"][rows.index(10)] - new)) <= 0.5
+
+
+def test_cli_track_reads_a_truncated_recording(tmp_path, capsys, caplog):
+    if not SAMPLE.is_file():
+        pytest.skip(f"{SAMPLE} not present")
+    data = SAMPLE.read_bytes()
+    path = tmp_path / "cut.xtf"
+    path.write_bytes(data[: packet_offsets(data)[400] + 3000])
+    out = tmp_path / "alt.csv"
+    assert main(["track", str(path), "-o", str(out)]) == 0
+    assert capsys.readouterr().err == ""
+    reports(caplog, 400, "truncated")
+    assert len(out.read_text().splitlines()) == 400 + 1
+
+
 @pytest.mark.parametrize("fault", [f for f in FAULTS if FAULTS[f][4] == "skipped"])
 def test_iter_pings_skips_the_bad_ping(tmp_path, caplog, fault):
     if not SAMPLE.is_file():
@@ -203,7 +279,9 @@ def test_a_changed_setting_is_an_error_not_a_glitch(tmp_path, clean):
     both_sides = [(0, CHAN, "SlantRange", 50.0), (1, CHAN, "SlantRange", 50.0)]
     # 50 pings recorded at another range: the setting changed, pings are not skipped
     path = _rewrite(tmp_path, range(100, 150), both_sides)
-    with pytest.raises(SonarRasterError, match="sample spacing changes at ping 100"):
+    with pytest.raises(
+        SonarRasterError, match="changes at ping 100 .* --pings 0:100 or --pings 100:150"
+    ):
         read_xtf(path)
     image, _ = read_xtf(path, slice(100, 150))  # one setting: fine
     assert image.sonar.max_range == pytest.approx(50.0)
