@@ -478,7 +478,16 @@ def main(argv: list[str] | None = None) -> int:
     if not args.xtf.is_file():
         print(f"no XTF file at {args.xtf}", file=sys.stderr)
         return 2
-    real = read_real(args.xtf)
+    try:
+        real = read_real(args.xtf)
+    except Exception as exc:  # pyxtf reads a damaged file in many ways
+        detail = " ".join(str(exc).split())[:160]
+        print(
+            f"compare_real: error: cannot read {args.xtf} as a clean two-channel XTF pass "
+            f"({type(exc).__name__}: {detail}); it compares files like the sample",
+            file=sys.stderr,
+        )
+        return 2
     firsts = {s: first_returns(real.samples[s]) for s in real.sides}
     detected = np.minimum(firsts["port"], firsts["starboard"]) * real.range_bin
     # Smooth: the steps of a bin between pings would make a steeply climbing or diving track.

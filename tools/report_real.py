@@ -301,6 +301,14 @@ def _bands_text(bands: dict, window: float) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    try:
+        return _report(argv)
+    except SonarRasterError as exc:
+        print(f"report_real: error: {exc}", file=sys.stderr)
+        return 2
+
+
+def _report(argv: list[str] | None) -> int:
     ap = parser(__doc__)
     ap.add_argument("xtf")
     ap.add_argument("-o", "--output", required=True)
@@ -336,6 +344,10 @@ def main(argv: list[str] | None = None) -> int:
     seconds = time.perf_counter() - t0
     image, nav, track = result.image, result.navigation, result.track
     dr = image.sonar.range_bin
+    if args.side not in image.sides:
+        raise SonarRasterError(
+            f"{args.xtf} has no {args.side} side (it has {', '.join(image.sides)}); give --side"
+        )
 
     fig, ax = plt.subplots(figsize=(10, 9))
     draw_waterfall(ax, image, track.altitude)

@@ -22,6 +22,7 @@ import numpy as np
 
 from .._checks import integer
 from ..errors import SonarRasterError
+from ..meshio.formats import MODEL_SUFFIXES, Y_UP_SUFFIXES
 from ..scenes import seabed as _seabed
 from ..scenes.objects import PRIMITIVES
 from ..sonar import SIDES
@@ -34,8 +35,6 @@ else:  # pragma: no cover
 _DIST_KINDS = ("uniform", "loguniform", "normal", "integers", "poisson", "choice")
 SEABED_KINDS = ("flat", "rough", "ripples", "bumpy")
 _SEABED_FIXED = ("size", "center", "depth", "seed")  # set by the generator, not the config
-_MODEL_SUFFIXES = (".wrl", ".vrml", ".gltf", ".glb", ".obj", ".ply", ".stl", ".off")
-_Y_UP = (".gltf", ".glb", ".wrl", ".vrml")
 BOX_MODES = ("highlight", "highlight+shadow")
 FORMATS = ("png", "exr")
 
@@ -366,12 +365,13 @@ def _object_spec(table: dict, k: int, where: str) -> ObjectSpec:
         raise SonarRasterError(
             f"{where}: unknown primitive {primitive!r}; use one of {', '.join(sorted(PRIMITIVES))}"
         )
-    if file is not None and not str(file).lower().endswith(_MODEL_SUFFIXES):
+    if file is not None and not str(file).lower().endswith(MODEL_SUFFIXES):
         raise SonarRasterError(
-            f"{where}: '{file}' is not a model file ({' '.join(_MODEL_SUFFIXES)})"
+            f"{where}: '{file}' is not a model file ({' '.join(MODEL_SUFFIXES)})"
         )
     label = table.pop("class", None) or primitive or Path(str(file)).stem
-    up = table.pop("up", "y" if file is not None and str(file).lower().endswith(_Y_UP) else "z")
+    y_up = file is not None and str(file).lower().endswith(Y_UP_SUFFIXES)
+    up = table.pop("up", "y" if y_up else "z")
     if up not in ("y", "z"):
         raise SonarRasterError(f'{where}: \'up\' must be "y" or "z"')
     common = {key: table.pop(key, default) for key, default in _OBJECT_COMMON.items()}

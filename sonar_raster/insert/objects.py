@@ -20,13 +20,12 @@ import numpy as np
 
 from .._checks import non_negative, number, positive
 from ..errors import SonarRasterError
+from ..meshio.formats import MODEL_SUFFIXES, Y_UP_SUFFIXES
 from ..scenes.objects import PRIMITIVES, build_primitive
 
 __all__ = ["DEFAULT_REFLECTIVITY", "ObjectMesh", "object_mesh", "parse_object", "resting_mesh"]
 
 DEFAULT_REFLECTIVITY = 0.9
-_MODEL_SUFFIXES = (".wrl", ".vrml", ".wrz", ".gltf", ".glb", ".obj", ".ply", ".stl", ".off")
-_Y_UP = (".gltf", ".glb", ".wrl", ".vrml", ".wrz")
 _COMMON = ("yaw", "reflectivity", "class", "scale", "up")
 
 
@@ -192,10 +191,10 @@ def object_mesh(spec: str, base: Path | None = None) -> ObjectMesh:
         except TypeError as exc:
             raise SonarRasterError(f"object {spec!r}: {exc}") from None
         label = label or kind
-    elif kind.lower().endswith(_MODEL_SUFFIXES):
+    elif kind.lower().endswith(MODEL_SUFFIXES):
         path = Path(kind) if base is None or Path(kind).is_absolute() else base / kind
         scale = positive(f"object {spec!r} 'scale'", opts.pop("scale", 1.0))
-        up = str(opts.pop("up", "y" if kind.lower().endswith(_Y_UP) else "z"))
+        up = str(opts.pop("up", "y" if kind.lower().endswith(Y_UP_SUFFIXES) else "z"))
         if up not in ("y", "z"):
             raise SonarRasterError(f"object {spec!r}: 'up' must be y or z")
         if opts:
@@ -209,6 +208,6 @@ def object_mesh(spec: str, base: Path | None = None) -> ObjectMesh:
     else:
         raise SonarRasterError(
             f"object {kind!r} is neither a primitive ({', '.join(sorted(PRIMITIVES))}) nor a "
-            f"model file ({' '.join(_MODEL_SUFFIXES)})"
+            f"model file ({' '.join(MODEL_SUFFIXES)})"
         )
     return resting_mesh(label, kind, v, f, refl, math.degrees(yaw), options)

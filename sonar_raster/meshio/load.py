@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import logging
 import math
-import struct
 from pathlib import Path
 from typing import Any
 
@@ -16,25 +15,12 @@ import numpy as np
 
 from ..errors import SonarRasterError
 from ..scene import MeshPart
+from .formats import MODEL_SUFFIXES, VRML_SUFFIXES
 from .vrml import load_vrml
 
 log = logging.getLogger(__name__)
 
-#: File name endings read by :func:`load_model`, lower case.
-VRML_SUFFIXES = (".wrl", ".vrml", ".wrz", ".wrl.gz")
-TRIMESH_SUFFIXES = (".gltf", ".glb", ".obj", ".ply", ".stl", ".off")
 
-# What trimesh raises on malformed files (JSON and accessor errors in glTF, short buffers).
-_TRIMESH_ERRORS = (
-    ValueError,
-    TypeError,
-    KeyError,
-    IndexError,
-    AttributeError,
-    OSError,
-    EOFError,
-    struct.error,
-)
 _DEFAULT_REFLECTIVITY = 0.5
 
 
@@ -66,10 +52,9 @@ def load_model(path: str | Path) -> list[MeshPart]:
     """
     path = Path(path)
     name = path.name.lower()
-    if not name.endswith(VRML_SUFFIXES + TRIMESH_SUFFIXES):
+    if not name.endswith(MODEL_SUFFIXES):
         raise SonarRasterError(
-            f"'{path.name}' is not a known model format; use one of "
-            f"{' '.join(VRML_SUFFIXES + TRIMESH_SUFFIXES)}"
+            f"'{path.name}' is not a known model format; use one of {' '.join(MODEL_SUFFIXES)}"
         )
     if not path.is_file():
         what = "is a folder, not a file" if path.is_dir() else "not found"
@@ -79,7 +64,22 @@ def load_model(path: str | Path) -> list[MeshPart]:
         raise SonarRasterError(
             f"model file '{path.name}' holds no triangles; export the model as a triangle mesh"
         )
+    if not any(_has_area(part) for part in parts):
+        raise SonarRasterError(
+            f"model file '{path.name}' holds only triangles of zero area (degenerate, or scaled "
+            "to nothing); check the model"
+        )
     return parts
+
+
+def _has_area(part: MeshPart) -> bool:
+    """Whether any finite triangle of ``part`` has a non-zero area."""
+    corners = np.asarray(part.vertices, dtype=np.float64)[np.asarray(part.faces)]
+    with np.errstate(all="ignore"):
+        area = np.linalg.norm(
+            np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1
+        )
+    return bool(np.any(np.isfinite(area) & (area > 0)))
 
 
 def _load_trimesh(path: Path) -> list[MeshPart]:
@@ -87,6 +87,8 @@ def _load_trimesh(path: Path) -> list[MeshPart]:
     import trimesh  # slow to import: only when such a file is read
 
     kind = path.suffix.lstrip(".").upper()
+    if kind == "GLTF":
+        _check_json(path)
     try:
         scene = trimesh.load_scene(str(path))
     except ImportError as exc:  # trimesh decodes non-UTF-8 text with an optional package
@@ -94,8 +96,8 @@ def _load_trimesh(path: Path) -> list[MeshPart]:
             f"cannot read '{path.name}' as {kind}: it is corrupt, or text that is not UTF-8; "
             "re-export it"
         ) from exc
-    except _TRIMESH_ERRORS as exc:
-        detail = " ".join(str(exc).split())[:120]
+    except Exception as exc:  # trimesh raises many kinds (also assertions) on malformed files
+        detail = " ".join(str(exc).split())[:120] or "its parts do not fit together"
         raise SonarRasterError(
             f"cannot read '{path.name}' as {kind} ({type(exc).__name__}: {detail}); "
             "check the file or re-export it"
@@ -108,13 +110,38 @@ def _load_trimesh(path: Path) -> list[MeshPart]:
             log.debug("%s: skipping node %s without triangles", path.name, node)
             continue
         matrix = np.asarray(matrix, dtype=np.float64)
-        vertices = np.asarray(mesh.vertices, dtype=np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
+        vertices = np.asarray(mesh.vertices, dtype=np.float64)
+        if not (np.all(np.isfinite(vertices)) and np.all(np.isfinite(matrix))):
+            raise SonarRasterError(
+                f"'{path.name}': node {node} has coordinates or a transform that are not "
+                "finite numbers (inf or NaN); fix the model file"
+            )
+        vertices = vertices @ matrix[:3, :3].T + matrix[:3, 3]
         faces = np.array(mesh.faces, dtype=np.int64)
         if np.linalg.det(matrix[:3, :3]) < 0:  # a mirroring transform turns faces inside out
             faces = faces[:, ::-1].copy()
         reflectivity = _reflectivity(scene, node, mesh, path)
         parts.append(MeshPart(vertices, faces, reflectivity, str(node)))
     return parts
+
+
+def _check_json(path: Path) -> None:
+    """A one-line error unless the ``.gltf`` file is JSON (trimesh blames a missing file)."""
+    import json
+
+    try:
+        with open(path, encoding="utf-8") as fh:
+            json.load(fh)
+    except UnicodeDecodeError:
+        raise SonarRasterError(
+            f"cannot read '{path.name}' as GLTF: it is not UTF-8 JSON (a binary glTF is named "
+            ".glb); check the file or re-export it"
+        ) from None
+    except json.JSONDecodeError as exc:
+        raise SonarRasterError(
+            f"cannot read '{path.name}' as GLTF: not JSON (line {exc.lineno}: {exc.msg}); "
+            "check the file or re-export it"
+        ) from None
 
 
 def _reflectivity(scene: Any, node: str, mesh: Any, path: Path) -> float | np.ndarray:

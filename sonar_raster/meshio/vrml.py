@@ -791,6 +791,9 @@ def _sphere(node: _Node) -> tuple[np.ndarray, np.ndarray]:
     return _lathe(list(zip(radii, r * np.cos(phi), strict=True)), False, False)
 
 
+#: Geometry nodes without a surface (lines, points): left out without a warning.
+_NO_SURFACE = {"IndexedLineSet", "PointSet"}
+
 _GEOMETRY = {
     "IndexedFaceSet": _indexed_face_set,
     "ElevationGrid": _elevation_grid,
@@ -818,6 +821,7 @@ class _Walker:
         self.parts: list[MeshPart] = []
         self._meshes: dict[int, tuple[np.ndarray, np.ndarray] | None] = {}
         self._inlines: dict[Path, list[_Node]] = {}
+        self._unsupported: set[str] = set()  # geometry node types already warned about
 
     def walk(self, nodes: list[_Node], matrix: np.ndarray, name: str | None) -> list[MeshPart]:
         """Visit ``nodes`` under ``matrix``; ``name`` is the nearest ancestor DEF name."""
@@ -855,8 +859,15 @@ class _Walker:
             return
         if id(geometry) not in self._meshes:
             build = _GEOMETRY.get(geometry.type)
-            if build is None:
-                log.debug("skipping unsupported geometry %s", geometry.type)
+            if build is None and geometry.type not in self._unsupported | _NO_SURFACE:
+                self._unsupported.add(geometry.type)
+                warnings.warn(
+                    f"{geometry.src.name}:{geometry.src.line(geometry.pos)}: {geometry.type} "
+                    f"geometry is not read and is left out (read: {', '.join(_GEOMETRY)}); "
+                    "export the model as a triangle mesh to keep it",
+                    InputWarning,
+                    stacklevel=2,
+                )
             with _lenient():
                 self._meshes[id(geometry)] = None if build is None else build(geometry)
         mesh = self._meshes[id(geometry)]

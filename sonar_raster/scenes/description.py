@@ -23,6 +23,7 @@ import numpy as np
 
 from .._checks import positive
 from ..errors import InputWarning, SonarRasterError
+from ..meshio.formats import MODEL_SUFFIXES, Y_UP_SUFFIXES, model_suffix
 from ..scene import MeshPart, Scene, build_scene
 from ..sonar import SIDES, BeamPattern, Sonar
 from ..trajectory import Trajectory
@@ -43,8 +44,6 @@ else:  # pragma: no cover
 
 log = logging.getLogger(__name__)
 
-MODEL_SUFFIXES = (".wrl", ".vrml", ".gltf", ".glb", ".obj", ".ply", ".stl", ".off")
-_Y_UP_SUFFIXES = (".gltf", ".glb", ".wrl", ".vrml")  # y-up by their specifications
 DEFAULT_SEABED_REFLECTIVITY = 0.3  # sand, relative to a rigid object's ~0.9
 
 
@@ -203,7 +202,7 @@ def load_scene_file(path: str | Path, overrides: Overrides | None = None) -> Sce
                 "[[objects]] entry"
             )
         return _checked_setup(_from_description(path, ov), ov)
-    if suffix in MODEL_SUFFIXES:
+    if model_suffix(path) is not None:
         return _checked_setup(_from_model(path, ov), ov)
     raise SonarRasterError(
         f"{path}: unknown scene extension {suffix or '(none)'!r}; use .toml or a model file "
@@ -603,7 +602,7 @@ def _object(spec: dict, base: Path, seabed: Heightfield | None, k: int) -> list[
 
         model = base / str(spec.pop("file"))
         parts = load_model(model)
-        up = "y" if model.suffix.lower() in _Y_UP_SUFFIXES else "z"
+        up = "y" if model_suffix(model) in Y_UP_SUFFIXES else "z"
     else:
         raise SonarRasterError(
             f"{where}: give 'file' (a model) or 'primitive' (box, cylinder, sphere)"
@@ -770,7 +769,7 @@ def _from_model(path: Path, ov: Overrides) -> SceneSetup:
     low, high = corners.min(axis=0), corners.max(axis=0)
     extent = high - low
     size = float(extent.max())
-    up = place.up or ("y" if path.suffix.lower() in _Y_UP_SUFFIXES else "z")
+    up = place.up or ("y" if model_suffix(path) in Y_UP_SUFFIXES else "z")
     _warn_size(path.name, size, place)
     track = ov.track
     if track is not None:
@@ -798,6 +797,7 @@ def _from_model(path: Path, ov: Overrides) -> SceneSetup:
         traj = track.placed(middle, 0.0)
     else:
         traj = _auto_track(ov, sonar, middle, along, heading, altitude, size)
+    _warn_inside(path.name, objects, traj)
     xy = np.vstack([traj.positions[:, :2], target])
     reach = sonar.max_range + 10.0
     lo, hi = xy.min(axis=0) - reach, xy.max(axis=0) + reach
@@ -900,6 +900,23 @@ def _spacing(ov: Overrides, sonar: Sonar) -> float | None:
     if ov.speed is not None:
         return ov.speed * 2.0 * sonar.max_range / sonar.sound_speed
     return ov.ping_spacing
+
+
+def _warn_inside(name: str, parts: list[MeshPart], traj: Trajectory) -> None:
+    """Warn when the track runs inside the model's bounding box (it images from within)."""
+    corners = np.concatenate([p.vertices for p in parts])
+    low, high = corners.min(axis=0), corners.max(axis=0)
+    inside = np.all((traj.positions >= low) & (traj.positions <= high), axis=1)
+    if inside.any():
+        altitude = float(np.median(traj.positions[inside, 2]))
+        warnings.warn(
+            f"the track runs inside {name}'s bounding box on {int(inside.sum())} of "
+            f"{traj.n_pings} pings (the model is {high[2] - low[2]:.4g} m tall, the sonar "
+            f"{altitude:.3g} m up): pass --units or --scale if it is too large, or a higher "
+            "--altitude",
+            InputWarning,
+            stacklevel=3,
+        )
 
 
 def _warn_size(name: str, size: float, place: Placement) -> None:

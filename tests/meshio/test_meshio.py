@@ -161,6 +161,28 @@ def test_vrml_goes_through_the_vrml_reader(tmp_path):
             r"'points\.ply' holds no",
         ),
         ("broken.wrl", b"#VRML V2.0 utf8\nGroup {\n", r"broken\.wrl:2: expected a field name"),
+        ("empty.gltf", b"", r"cannot read 'empty\.gltf' as GLTF: not JSON \(line 1"),
+        (
+            "glb.gltf",
+            b"glTF\x02\x00\x00\x00\xff\xfe",
+            r"not UTF-8 JSON \(a binary glTF is named \.glb",
+        ),
+        (
+            "old.gltf",  # trimesh raises NotImplementedError
+            b'{"asset": {"version": "1.0"}, "scenes": {}}',
+            r"cannot read 'old\.gltf' as GLTF \(NotImplementedError: only GLTF 2",
+        ),
+        (
+            "flat.stl",  # every triangle of zero area
+            b"solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\n"
+            b"vertex 2 0 0\nendloop\nendfacet\nendsolid s\n",
+            r"'flat\.stl' holds only triangles of zero area",
+        ),
+        (
+            "nothing.wrl",
+            b"#VRML V2.0 utf8\nTransform { scale 0 0 0 children Shape { geometry Box {} } }\n",
+            r"'nothing\.wrl' holds only triangles of zero area",
+        ),
     ],
 )
 def test_bad_files_raise_one_line_errors(tmp_path, name, content, message):
@@ -213,3 +235,48 @@ def test_colour_texture_gives_per_face_reflectivity(tmp_path, suffix):
     expected = [factor * np.mean((samples @ uv[face, 0]) >= 0.5) for face in f]
     np.testing.assert_allclose(r, expected, atol=0.02)
     assert r[0] == pytest.approx(0.0, abs=0.02) and r[1] > 0.3 * factor
+
+
+def test_a_gltf_whose_buffer_is_short_is_one_line(tmp_path):
+    files = trimesh.exchange.gltf.export_gltf(trimesh.Scene(box()))  # the JSON and its .bins
+    for name, data in files.items():
+        (tmp_path / ("box.gltf" if name.endswith(".gltf") else name)).write_bytes(data)
+    first = sorted(n for n in files if n.endswith(".bin"))[0]
+    (tmp_path / first).write_bytes(files[first][:100])  # shorter than the JSON says: an assert
+    with pytest.raises(SonarRasterError, match=r"cannot read 'box\.gltf' as GLTF") as info:
+        load_model(tmp_path / "box.gltf")
+    assert "\n" not in str(info.value)
+
+
+def test_a_non_finite_vertex_is_one_line_naming_the_file(tmp_path):
+    mesh = box()
+    mesh.vertices[0] = [np.inf, 0.0, 0.0]
+    mesh.export(tmp_path / "inf.glb")
+    with pytest.raises(SonarRasterError, match=r"'inf\.glb': node .* not finite"):
+        load_model(tmp_path / "inf.glb")
+
+
+@pytest.mark.parametrize("name", ["box.wrz", "box.wrl.gz"])
+def test_gzipped_vrml_is_a_model_file_for_scenes_too(tmp_path, name):
+    import gzip
+
+    from sonar_raster.scenes.description import load_scene
+
+    path = tmp_path / name
+    path.write_bytes(gzip.compress(b"#VRML V2.0 utf8\nShape { geometry Box { size 2 1 1 } }\n"))
+    setup = load_scene(path)
+    assert setup.notes["placement"]["size_m"] == pytest.approx([2.0, 1.0, 1.0])  # y-up: turned
+
+
+def test_unread_vrml_geometry_is_a_warning_naming_it(tmp_path):
+    from sonar_raster.errors import InputWarning
+
+    path = tmp_path / "x.wrl"
+    path.write_text(
+        "#VRML V2.0 utf8\nShape { geometry Box {} }\n"
+        "Shape { geometry Extrusion { spine [0 0 0, 0 1 0] } }\n"
+        "Shape { geometry Extrusion { spine [0 0 0, 0 2 0] } }\n"
+    )
+    with pytest.warns(InputWarning, match=r"x\.wrl:3: Extrusion geometry is not read") as seen:
+        parts = load_model(path)
+    assert len(parts) == 1 and len([w for w in seen if "Extrusion" in str(w.message)]) == 1

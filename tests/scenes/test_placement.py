@@ -89,6 +89,20 @@ def test_units_scale_the_model_and_the_automatic_track_follows(tmp_path):
     assert UNITS["in"] == 0.0254 and UNITS["ft"] == 0.3048
 
 
+def test_a_model_the_track_runs_inside_warns(tmp_path):
+    model = tmp_path / "hall.obj"  # 400 m x 200 m, 25 m tall: the 10 m track runs through it
+    vertices, faces = WEDGE_OBJ.split("f", 1)
+    big = np.loadtxt(vertices.replace("v", "").splitlines()) * [200.0, 200.0, 50.0]
+    model.write_text("".join(f"v {x} {y} {z}\n" for x, y, z in big) + "f" + faces)
+    with pytest.warns(InputWarning) as seen:
+        load(model)
+    inside = [str(w.message) for w in seen if "runs inside" in str(w.message)]
+    assert len(inside) == 1 and "hall.obj's bounding box" in inside[0] and "25 m tall" in inside[0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        load(model, units="cm")  # 4 m across: beside the track, nothing to say
+
+
 def test_a_speck_warns_with_the_scale_that_makes_it_a_metre(tmp_path):
     model = tmp_path / "valve.obj"
     model.write_text(WEDGE_OBJ)

@@ -28,11 +28,15 @@ from ...trajectory import Segment, Trajectory
 from .context import create_context, release_context
 from .heightfield import Grid, find_grid
 from .programs import specialise
-from .subdivide import subdivide, subdivision_counts
+from .subdivide import subdivide, subdivide_within, subdivision_counts
 from .tiles import TileIndex
 from .warp import Warp
 
 log = logging.getLogger(__name__)
+
+#: Pieces per edge beyond which only the pieces of a triangle that the track can see are
+#: made (256² = 65 536 pieces: a plane 256 × 20 range bins wide is left whole).
+CLIP_COUNT = 256
 
 MAX_TEXTURE = 16384
 MAX_TEXELS = 1 << 26  # largest framebuffer per draw (64 M samples, 768 MiB of targets)
@@ -275,14 +279,25 @@ class RasterRenderer:
         self._scene_key = None
         self._scene = None
 
-    def _upload(self, scene: Scene, origin: np.ndarray, max_edge: float) -> None:
+    def _upload(
+        self,
+        scene: Scene,
+        origin: np.ndarray,
+        max_edge: float,
+        box: tuple[float, float, float, float] | None = None,
+    ) -> None:
         """Shift the scene to ``origin`` (float64), subdivide long triangles, upload vertices.
+
+        Triangles that subdivision would cut into more than ``CLIP_COUNT²`` pieces keep only
+        the pieces that reach into ``box`` (local ``x0, x1, y0, y1``: what the track can see;
+        :func:`subdivide_within`), so a model read in the wrong units, or a two-triangle plane
+        kilometres wide, costs what the swath holds.
 
         Memory is kept near one float32 copy of the vertices: the index and reflectivity
         buffers of the whole scene are made only if a draw needs the whole scene, and labels
         only if asked for.
         """
-        key = (tuple(origin), max_edge)
+        key = (tuple(origin), max_edge, box)
         if self._scene is scene and key == self._scene_key:
             return
         self._release_geometry()
@@ -293,7 +308,16 @@ class RasterRenderer:
         big = counts > 1
         if big.any():
             corners = vertices[faces[big]].astype(np.float64)
-            pieces, parent = subdivide(corners, counts[big])
+            huge = counts[big] > CLIP_COUNT
+            if huge.any() and box is not None:  # only what the track can see is cut up
+                near, within = subdivide_within(corners[huge], max_edge, box)
+                rest, whole = subdivide(corners[~huge], counts[big][~huge])
+                pieces = np.concatenate([rest, near])
+                parent = np.concatenate(
+                    [np.flatnonzero(~huge)[whole], np.flatnonzero(huge)[within]]
+                )
+            else:
+                pieces, parent = subdivide(corners, counts[big])
             extra = pieces.reshape(-1, 3).astype(np.float32)
             new_faces = len(vertices) + np.arange(len(extra)).reshape(-1, 3)
             vertices = np.concatenate([vertices, extra])
@@ -523,7 +547,11 @@ class RasterRenderer:
         with self.ctx:
             origin = trajectory.positions[0].copy()
             max_edge = self.settings.max_edge or 20.0 * sonar.range_bin
-            self._upload(scene, origin, max_edge)
+            local = trajectory.positions[:, :2] - origin[:2]
+            reach = sonar.max_range + max_edge  # no echo comes from further than max_range
+            lo, hi = local.min(axis=0) - reach, local.max(axis=0) + reach
+            box = (float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]))
+            self._upload(scene, origin, max_edge, box)
             plan = self._plan(scene, sonar, trajectory)
             if self.settings.cull and self._rasters(plan, sonar):
                 # built now, before the sample targets take their memory
@@ -534,7 +562,7 @@ class RasterRenderer:
             with self.ctx:
                 # A render of another scene between two blocks replaced the uploaded one:
                 # upload this generator's scene again (a no-op when it is still there).
-                self._upload(scene, origin, max_edge)
+                self._upload(scene, origin, max_edge, box)
                 image = self._render_block(
                     scene, sonar, draws, origin, (first, last), progress, labels
                 )

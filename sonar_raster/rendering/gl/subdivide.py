@@ -61,6 +61,8 @@ def subdivide(tri: np.ndarray, counts: np.ndarray) -> tuple[np.ndarray, np.ndarr
     parent : ndarray, shape (p,), int64
         Index of each piece's parent triangle.
     """
+    if len(tri) == 0:
+        return np.empty((0, 3, 3)), np.empty(0, dtype=np.int64)
     out, parents = [], []
     for n in np.unique(counts):
         idx = np.nonzero(counts == n)[0]
@@ -80,3 +82,50 @@ def subdivide(tri: np.ndarray, counts: np.ndarray) -> tuple[np.ndarray, np.ndarr
         parents.append(np.repeat(idx, len(uv)))
     order = np.argsort(np.concatenate(parents), kind="stable")
     return np.concatenate(out)[order], np.concatenate(parents)[order]
+
+
+def subdivide_within(
+    tri: np.ndarray,
+    max_edge: float,
+    box: tuple[float, float, float, float],
+    split: int = 16,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Subdivide triangles to ``max_edge``, keeping only pieces that reach into a box.
+
+    Each triangle is cut into ``split²`` congruent pieces (:func:`subdivide`), the pieces whose
+    bounding rectangle misses the vertical box ``x0 <= x <= x1, y0 <= y <= y1`` are dropped,
+    and the rest cut again until their edges are short enough; so a triangle kilometres wide
+    costs what the box holds, and every piece is similar to its triangle (no slivers, which
+    the raster resolves badly near nadir).
+
+    Parameters
+    ----------
+    tri : ndarray, shape (m, 3, 3)
+        Triangle corners.
+    max_edge : float
+        Longest edge allowed after subdivision, metres.
+    box : tuple of float
+        ``(x0, x1, y0, y1)``.
+    split : int
+        Pieces per edge of each coarse cut.
+
+    Returns
+    -------
+    pieces : ndarray, shape (p, 3, 3)
+    parent : ndarray, shape (p,), int64
+        Index of each piece's triangle; a triangle wholly outside the box has none.
+    """
+    x0, x1, y0, y1 = box
+    pieces, parent = np.asarray(tri, dtype=np.float64), np.arange(len(tri))
+    while True:
+        flat = pieces.reshape(-1, 3)
+        counts = subdivision_counts(flat, np.arange(len(flat)).reshape(-1, 3), max_edge)
+        coarse = np.minimum(counts, split)
+        if np.all(counts <= split):
+            pieces, within = subdivide(pieces, counts)
+            return pieces, parent[within]
+        pieces, within = subdivide(pieces, coarse)
+        parent = parent[within]
+        lo, hi = pieces[:, :, :2].min(axis=1), pieces[:, :, :2].max(axis=1)
+        near = (hi[:, 0] >= x0) & (lo[:, 0] <= x1) & (hi[:, 1] >= y0) & (lo[:, 1] <= y1)
+        pieces, parent = pieces[near], parent[near]
