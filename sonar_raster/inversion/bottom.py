@@ -205,7 +205,10 @@ def _clean(raw: np.ndarray, range_bin: float, size: int) -> np.ndarray:
 def _smooth(clean: np.ndarray, size: int) -> np.ndarray:
     ok = np.isfinite(clean)
     if not ok.any():
-        raise SonarRasterError("no bottom return found in any ping; give the altitude")
+        raise SonarRasterError(
+            "no bottom return found in any ping (the image is blank, saturated or shows no "
+            "seabed); give the altitude where the command takes one (--altitude)"
+        )
     med = _running_median(clean, size)
     good = np.isfinite(med)
     filled = np.interp(np.arange(len(clean)), np.flatnonzero(good), med[good])

@@ -185,3 +185,16 @@ def test_render_reuses_a_recorded_track(tmp_path, capsys):
     np.testing.assert_allclose(track.positions[:, 1], north - north[0], atol=1e-6)
     np.testing.assert_allclose(track.headings, nav.filled_heading())
     assert np.array_equal(np.isfinite(altitude), np.isfinite(nav.altitude))
+
+
+def test_invert_points_a_speckled_image_to_the_surface_method(tmp_path, capsys):
+    rng = np.random.default_rng(0)
+    k = np.arange(256)
+    clean = np.where(k >= 60, 40.0 / np.maximum(k - 20.0, 1.0), 0.0) * np.ones((40, 1))
+    notes = []
+    for name, image in (("clean", clean), ("speckled", clean * rng.exponential(size=clean.shape))):
+        np.save(tmp_path / f"{name}.npy", image)
+        args = ["invert", str(tmp_path / f"{name}.npy"), "--range-bin", "0.05"]
+        assert main([*args, "-o", str(tmp_path / name), "--no-mesh", "--no-previews"]) == 0
+        notes.append([line for line in capsys.readouterr().out.splitlines() if "note:" in line])
+    assert notes[0] == [] and "--method surface" in notes[1][0]
