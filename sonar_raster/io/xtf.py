@@ -168,7 +168,9 @@ class SkippedPing:
         Position among the file's sonar pings, from 0 (skipped pings keep their place, so the
         indices of the others do not move).
     kind : str
-        What was wrong: "time", "Weight", "samples", "spacing", "packet" or "layout".
+        What was wrong: "time", "Weight", "samples", "spacing", "packet", "layout", or the
+        packet's frame: "truncated" (it runs past the file's end) or "corrupt" (no marker,
+        empty).
     detail : str
         The offending value, e.g. "date 2013-09-40".
     """
@@ -179,7 +181,7 @@ class SkippedPing:
 
 
 class _BadPacket(Exception):
-    """A correctly framed sonar packet that is not a usable ping (``kind``, ``detail``)."""
+    """A sonar packet that is not a usable ping, or a damaged frame (``kind``, ``detail``)."""
 
     def __init__(self, kind: str, detail: str) -> None:
         super().__init__(detail)
@@ -911,8 +913,13 @@ def _setting_change(rows: list[XtfPing], keys: list[Any], path: Path) -> str:
             else:
                 runs.append((start, k))
             start = k
-    change = next(k for k in range(1, len(rows)) if keys[k] != keys[k - 1])
-    a, b = rows[change - 1], rows[change]
+    # where the second run starts (a glitch before it is not the change), else the first change
+    if len(runs) > 1:
+        a, b = rows[runs[1][0] - 1], rows[runs[1][0]]
+        a = a if keys[runs[1][0] - 1] == keys[runs[0][0]] else rows[runs[0][0]]
+    else:
+        change = next(k for k in range(1, len(rows)) if keys[k] != keys[k - 1])
+        a, b = rows[change - 1], rows[change]
     if _layout(a)[0] != _layout(b)[0]:
         was = ", ".join(f"{s} {len(v)}" for s, v in a.sides.items())
         now = ", ".join(f"{s} {len(v)}" for s, v in b.sides.items())
