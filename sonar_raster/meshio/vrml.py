@@ -54,6 +54,8 @@ DEPARTURES = {
     "def-no-name": "DEF without a name before a node type; read as an unnamed node",
     "nan": "'nan' numbers (not numbers, e.g. normals of degenerate faces); faces with a NaN "
     "corner are dropped",
+    "size": "a Box, Cone, Cylinder or Sphere size that is not > 0 (it would be inside out or "
+    "empty); the shape is left out",
 }
 
 
@@ -586,6 +588,18 @@ def _vector(node: _Node, name: str, default: tuple[float, ...]) -> np.ndarray:
     return value
 
 
+class _NoSize(Exception):
+    """A primitive's size field that is not > 0 (noted as a departure; the shape left out)."""
+
+
+def _size(node: _Node, name: str, default: tuple[float, ...]) -> np.ndarray:
+    """A size field (Box size, radius, height): every number > 0, as VRML97 requires."""
+    value = _vector(node, name, default)
+    if not np.all(value > 0):
+        raise _NoSize
+    return value
+
+
 def _flag(node: _Node, name: str, default: bool) -> bool:
     value = node.fields.get(name, default)
     if not isinstance(value, bool):
@@ -711,7 +725,7 @@ def _elevation_grid(node: _Node) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _box(node: _Node) -> tuple[np.ndarray, np.ndarray]:
-    half = _vector(node, "size", (2.0, 2.0, 2.0)) / 2
+    half = _size(node, "size", (2.0, 2.0, 2.0)) / 2
     signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
     faces = [
         [0, 1, 3],
@@ -767,7 +781,7 @@ def _lathe(
 
 
 def _cylinder(node: _Node) -> tuple[np.ndarray, np.ndarray]:
-    r, h = _vector(node, "radius", (1.0,))[0], _vector(node, "height", (2.0,))[0]
+    r, h = _size(node, "radius", (1.0,))[0], _size(node, "height", (2.0,))[0]
     return _lathe(
         [(r, -h / 2), (r, h / 2)],
         _flag(node, "bottom", True),
@@ -777,14 +791,14 @@ def _cylinder(node: _Node) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _cone(node: _Node) -> tuple[np.ndarray, np.ndarray]:
-    r, h = _vector(node, "bottomRadius", (1.0,))[0], _vector(node, "height", (2.0,))[0]
+    r, h = _size(node, "bottomRadius", (1.0,))[0], _size(node, "height", (2.0,))[0]
     return _lathe(
         [(r, -h / 2), (0.0, h / 2)], _flag(node, "bottom", True), False, _flag(node, "side", True)
     )
 
 
 def _sphere(node: _Node) -> tuple[np.ndarray, np.ndarray]:
-    r = _vector(node, "radius", (1.0,))[0]
+    r = _size(node, "radius", (1.0,))[0]
     phi = np.pi * np.arange(SEGMENTS // 2, -1, -1) / (SEGMENTS // 2)
     radii = r * np.sin(phi)
     radii[[0, -1]] = 0.0
@@ -821,7 +835,7 @@ class _Walker:
         self.parts: list[MeshPart] = []
         self._meshes: dict[int, tuple[np.ndarray, np.ndarray] | None] = {}
         self._inlines: dict[Path, list[_Node]] = {}
-        self._unsupported: set[str] = set()  # geometry node types already warned about
+        self._unsupported: set[str] = set()  # geometry types (and "size") already warned about
 
     def walk(self, nodes: list[_Node], matrix: np.ndarray, name: str | None) -> list[MeshPart]:
         """Visit ``nodes`` under ``matrix``; ``name`` is the nearest ancestor DEF name."""
@@ -869,7 +883,18 @@ class _Walker:
                     stacklevel=2,
                 )
             with _lenient():
-                self._meshes[id(geometry)] = None if build is None else build(geometry)
+                try:
+                    self._meshes[id(geometry)] = None if build is None else build(geometry)
+                except _NoSize:
+                    self._meshes[id(geometry)] = None
+                    if "size" not in self._unsupported:  # once per file, like a departure
+                        self._unsupported.add("size")
+                        where = f"{geometry.src.name}:{geometry.src.line(geometry.pos)}"
+                        warnings.warn(
+                            f"{where}: departs from VRML97: {DEPARTURES['size']}",
+                            VrmlDepartureWarning,
+                            stacklevel=2,
+                        )
         mesh = self._meshes[id(geometry)]
         if mesh is None or not len(mesh[1]):
             return

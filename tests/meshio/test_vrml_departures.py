@@ -137,3 +137,13 @@ def test_cli_prints_a_departure_as_a_warning_line_and_renders(tmp_path, capsys):
         f"sonar-raster: warning: pa10_base.wrl:1: departs from VRML97: {DEPARTURES['no-header']}"
     ]
     assert out.is_file()
+
+
+def test_a_primitive_size_not_above_zero_leaves_its_shape_out_with_one_warning():
+    sizes = ["Box { size -2 1 1 }", "Sphere { radius 0 }", "Cylinder { height -1 }"]
+    text = HEADER + "".join(f"Shape {{ geometry {g} }}\n" for g in [*sizes, "Cone { }"])
+    parts, seen = parsed(text)
+    assert len(parts) == 1 and len(parts[0].faces) > 0  # the cone alone, not inside out
+    assert [s for s in seen if "not > 0" in s] == [
+        f"<string>:2: departs from VRML97: {DEPARTURES['size']}"
+    ]
