@@ -39,8 +39,8 @@ def add_parser(sub: Any) -> None:
         "invert",
         help="recover reflectivity, beam profile and elevation from one image side",
         description="Invert IMAGE (.npy, .exr or .png; rows = pings, columns = slant-range "
-        "bins from range 0; the renderer's EXR as is, its display PNG mapped back to "
-        "intensity, one --side of it) into DIR/elevation.exr, "
+        "bins from range 0; the renderer's EXR as is or another tool's one-channel or grey "
+        "EXR, its display PNG mapped back to intensity, one --side of it) into DIR/elevation.exr, "
         "reflectivity.exr, beam.exr (rows = pings, columns = ground-range cells, NaN = no "
         "estimate), ground.exr (the image in ground range at the recovered elevation), "
         "even.exr (evenly illuminated, seed Eq. 22), beam_profile.json, seabed.glb/.ply "

@@ -19,7 +19,9 @@ def read_side(path: Path, side: str | None) -> tuple[np.ndarray, str, dict]:
     """One side of an image file as float64 (pings, bins), the side's name and header fields.
 
     ``.npy`` and ``.png`` hold one side (PNG grey levels are taken as linear intensity);
-    ``.exr`` is the renderer's output, its ``sonar:range_bin_m`` given back in the header dict.
+    ``.exr`` is the renderer's output (``port``/``starboard`` channels), or one side from
+    another tool (one channel of any name, or equal R, G, B); its ``sonar:range_bin_m`` is
+    given back in the header dict.
     """
     suffix = path.suffix.lower()
     if suffix not in INPUT_SUFFIXES:
@@ -27,9 +29,15 @@ def read_side(path: Path, side: str | None) -> tuple[np.ndarray, str, dict]:
     if not path.is_file():
         raise SonarRasterError(f"{path}: no such file")
     if suffix == ".exr":
-        from ..io.images import read_exr
+        from ..io.images import read_pixels
+        from ..sonar import SIDES
 
-        sides, attrs = read_exr(path)
+        pixels, spec = read_pixels(path)
+        names = list(spec.channelnames)
+        attrs = {attr.name: attr.value for attr in spec.extra_attribs}
+        if not (names and all(n in SIDES for n in names)):  # another tool's EXR: one side
+            return _one_side_exr(pixels, names, path), side or "starboard", attrs
+        sides = {n: pixels[:, :, i] for i, n in enumerate(names)}
         name = side or ("starboard" if "starboard" in sides else next(iter(sides)))
         if name not in sides:
             raise SonarRasterError(f"{path}: no {name} channel (has {', '.join(sides)})")
@@ -50,6 +58,24 @@ def read_side(path: Path, side: str | None) -> tuple[np.ndarray, str, dict]:
     if not (np.issubdtype(data.dtype, np.number) or data.dtype == np.bool_):
         raise SonarRasterError(f"{path}: expected numbers, got dtype {data.dtype}")
     return np.asarray(data, dtype=np.float64), side or "starboard", {}
+
+
+def _one_side_exr(pixels: np.ndarray, names: list[str], path: Path) -> np.ndarray:
+    """The one side an EXR without port/starboard channels holds.
+
+    Its only channel, or its R, G and B when they are equal (a grey image; alpha ignored).
+    """
+    if len(names) == 1:
+        return pixels[:, :, 0].astype(np.float64)
+    colour = [names.index(c) for c in ("R", "G", "B") if c in names]
+    if len(colour) == 3 and all(
+        np.array_equal(pixels[:, :, colour[0]], pixels[:, :, k], equal_nan=True) for k in colour
+    ):
+        return pixels[:, :, colour[0]].astype(np.float64)
+    raise SonarRasterError(
+        f"{path}: channels {', '.join(names)} are not one side: give the renderer's port/"
+        "starboard EXR, a one-channel or grey EXR, or the side as .npy"
+    )
 
 
 def _read_png(path: Path) -> np.ndarray:

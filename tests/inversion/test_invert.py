@@ -619,6 +619,38 @@ def test_cli_invert_bad_input_writes_nothing(argv, tmp_path, monkeypatch, capsys
     assert not (tmp_path / "out").exists()
 
 
+def _exr(path, pixels, names, **attributes):
+    import OpenImageIO as oiio
+
+    spec = oiio.ImageSpec(pixels.shape[1], pixels.shape[0], pixels.shape[2], oiio.FLOAT)
+    spec.channelnames = names
+    for key, value in attributes.items():
+        spec.attribute(key, value)
+    out = oiio.ImageOutput.create(str(path))
+    out.open(str(path), spec)
+    out.write_image(np.ascontiguousarray(pixels, dtype=np.float32))
+    out.close()
+
+
+def test_another_tools_exr_is_one_side(tmp_path):
+    from sonar_raster.inversion.write import read_side
+
+    values = np.random.default_rng(0).exponential(size=(5, 7)).astype(np.float32)
+    _exr(tmp_path / "y.exr", values[:, :, None], ["Y"], **{"sonar:range_bin_m": 0.05})
+    _exr(tmp_path / "grey.exr", np.stack([values] * 3 + [np.ones_like(values)], -1), list("RGBA"))
+    for name, side in (("y.exr", None), ("grey.exr", "port")):
+        image, got, attrs = read_side(tmp_path / name, side)
+        assert got == (side or "starboard")
+        np.testing.assert_array_equal(image, values)
+    assert "sonar:range_bin_m" not in attrs
+    assert read_side(tmp_path / "y.exr", None)[2]["sonar:range_bin_m"] == pytest.approx(0.05)
+    _exr(tmp_path / "colour.exr", np.stack([values, 2 * values, values], -1), list("RGB"))
+    _exr(tmp_path / "two.exr", np.stack([values, values], -1), ["intensity", "mask"])
+    for name in ("colour.exr", "two.exr"):
+        with pytest.raises(SonarRasterError, match=r"are not one side: give the renderer's"):
+            read_side(tmp_path / name, None)
+
+
 def test_png_input_is_read_as_linear_grey_levels(tmp_path):
     import OpenImageIO as oiio
 
