@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from .._checks import cli_positive
+from .._checks import cli_positive, cli_seed
 
 
 def add_parser(sub: Any) -> None:
@@ -25,7 +25,7 @@ def add_parser(sub: Any) -> None:
     )
     ds.add_argument("--workers", type=cli_positive(int), default=1, help="worker processes")
     ds.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler tcp://... or 'local'")
-    ds.add_argument("--seed", type=int, default=None, help="global seed (default: config)")
+    ds.add_argument("--seed", type=cli_seed, default=None, help="global seed (default: config)")
     ds.add_argument(
         "--force",
         action="store_true",

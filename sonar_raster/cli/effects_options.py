@@ -152,7 +152,7 @@ def apply_sensor_option(args: argparse.Namespace, setup: Any) -> Any:
         explicit options applied (``notes["sensor_sonar_overrides"]`` lists them).
     """
     name = getattr(args, "sensor", None)
-    if name is None or ideal_requested(args):
+    if name is None or name == "ideal":  # --ideal with a preset: its sonar, no effects
         return setup
     import math
     from dataclasses import replace

@@ -7,6 +7,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from .._checks import cli_seed
 from ..errors import SonarRasterError
 
 
@@ -58,7 +59,7 @@ def add_parser(sub: Any) -> None:
         help="where the n-th --object stands: ping row and signed ground range in metres "
         "from the track (negative: port); objects without one are drawn",
     )
-    p.add_argument("--seed", type=int, default=0, help="seed of drawn places, noise, speckle")
+    p.add_argument("--seed", type=cli_seed, default=0, help="seed of drawn places, noise, speckle")
     p.add_argument(
         "--samples",
         choices=("auto", "amplitude", "intensity"),

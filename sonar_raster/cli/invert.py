@@ -38,7 +38,7 @@ def add_parser(sub: Any) -> None:
     inv = sub.add_parser(
         "invert",
         help="recover reflectivity, beam profile and elevation from one image side",
-        description="Invert IMAGE (.npy, .exr or .png; rows = pings, columns = slant-range "
+        description="Invert IMAGE (.npy, .exr, .tif or .png; rows = pings, columns = slant-range "
         "bins from range 0; the renderer's EXR as is or another tool's one-channel or grey "
         "EXR, its display PNG mapped back to intensity, one --side of it) into DIR/elevation.exr, "
         "reflectivity.exr, beam.exr (rows = pings, columns = ground-range cells, NaN = no "
@@ -245,7 +245,7 @@ def _invert_surface(args: argparse.Namespace) -> int:
     import numpy as np
 
     from ..inversion.surface import invert_line
-    from ..inversion.write import product_jobs
+    from ..inversion.write import exr_sides, product_jobs
     from ..io.commit import commit
 
     for name, value in (("--beam", args.beam), ("--flat-prior", args.flat_prior)):
@@ -256,11 +256,8 @@ def _invert_surface(args: argparse.Namespace) -> int:
     image, got, range_bin = load_side(path, args.side, range_bin)
     sides[got] = image
     other = "port" if got == "starboard" else "starboard"
-    if args.side is None and path.suffix.lower() == ".exr":  # the renderer's EXR holds both
-        try:
-            sides[other] = load_side(path, other, range_bin)[0]
-        except SonarRasterError:
-            pass  # a one-sided EXR: fit the side it has
+    if args.side is None and other in exr_sides(path):  # the renderer's EXR holds both
+        sides[other] = load_side(path, other, range_bin)[0]
     pings = image.shape[0]
     spacing = args.ping_spacing or float(range_bin)
     altitude = None if args.altitude is None else np.full(pings, float(args.altitude))

@@ -10,7 +10,7 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-from .._checks import cli_positive
+from .._checks import cli_positive, cli_seed
 from ..errors import DeprecatedOptionWarning, SonarRasterError
 from .effects_options import (
     add_effect_options,
@@ -93,7 +93,7 @@ def add_parser(sub: Any) -> None:
     )
     render.add_argument(
         "--seed",
-        type=int,
+        type=cli_seed,
         default=0,
         help="seed of the coherent model's scatterer jitter and of the speckle and noise effects "
         "(default 0: the same command gives the same image)",

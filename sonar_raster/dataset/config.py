@@ -428,6 +428,21 @@ def _check_render(render: dict, where: str) -> None:
         raise SonarRasterError(f"{where}: {exc}") from None
 
 
+def _check_finite(value: Any, where: str, key: str = "") -> None:
+    """One line naming the first nan or inf in a parsed TOML value (TOML allows both)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        raise SonarRasterError(f"{where}: '{key}' must be a finite number, got {value}")
+    items = (
+        value.items()
+        if isinstance(value, dict)
+        else enumerate(value)
+        if isinstance(value, list)
+        else ()
+    )
+    for name, inner in items:
+        _check_finite(inner, where, f"{key}.{name}" if key else str(name))
+
+
 def _config_path(name: str | Path) -> Path:
     """A config file, or a bundled config by name (``dataset_default``)."""
     path = Path(name)
@@ -465,9 +480,10 @@ def load_dataset_config(path: str | Path) -> DatasetConfig:
         raise SonarRasterError(f"dataset config {path} does not exist")
     where = path.name
     try:
-        raw = tomllib.loads(path.read_text(encoding="utf-8"))
+        raw = tomllib.loads(path.read_text(encoding="utf-8-sig"))  # a BOM from Windows editors
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise SonarRasterError(f"{where}: not valid TOML ({exc})") from None
+    _check_finite(raw, where)
     data = json.loads(json.dumps(raw))  # a deep copy to consume
     ds = _table(data, "dataset", where)
     name = str(ds.pop("name", path.stem))

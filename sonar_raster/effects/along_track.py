@@ -82,6 +82,7 @@ def filter_columns(data: np.ndarray, sigma: np.ndarray, circular: bool = False) 
     """
     n = data.shape[0]
     pad = 0 if circular else int(math.ceil(6.0 * float(np.max(sigma, initial=0.0)))) + 1
+    pad = min(pad, 3 * n)  # a kernel wider than the image: its mirror images repeat anyway
     work = np.pad(data, ((pad, pad), (0, 0)), mode="symmetric") if pad else data
     m = work.shape[0] if circular else sp_fft.next_fast_len(work.shape[0], real=True)
     spectrum = sp_fft.rfft(work, n=m, axis=0)

@@ -112,6 +112,9 @@ _NUMBERS = (
     "tvg_log_coefficient",
     "gain_db",
 )
+#: Largest constant gain, dB (10^30 in intensity: float32 holds 3.4e38).
+MAX_GAIN_DB = 300.0
+
 _ALONG_MODES = ("along_beam_deg", "array_length_m", "sas_resolution_m")
 
 
@@ -229,6 +232,14 @@ class Effects:
         if len(modes) > 1:
             raise SonarRasterError(
                 f"effects: give only one of {', '.join(modes)} (side-scan beam or SAS resolution)"
+            )
+        if self.along_beam_deg is not None and self.along_beam_deg >= 180:
+            raise SonarRasterError(
+                f"effects: along_beam_deg must be below 180 degrees, got {self.along_beam_deg!r}"
+            )
+        if abs(self.gain_db) > MAX_GAIN_DB:
+            raise SonarRasterError(
+                f"effects: gain_db must be within ±{MAX_GAIN_DB:g} dB, got {self.gain_db!r}"
             )
         if self.nadir_gap_deg is not None and not 0 < self.nadir_gap_deg < 90:
             raise SonarRasterError(

@@ -120,6 +120,8 @@ def gamma_texture(
 #: ``DownsampleMethod``: 2 = MAX, 4 = RMS, the mean of the intensity).
 DOWNSAMPLE_KINDS = ("off", "max", "mean")
 _BLOCK_BINS = 128  # recorded bins per block of the sub-sampled field (bounds the memory)
+#: Most complex sub-samples drawn at once by the recorder's speckle (256 MiB of complex128).
+_FINE_BUDGET = 1 << 24
 
 
 def _range_taps(sigma: float) -> np.ndarray:
@@ -205,7 +207,10 @@ def downsampled_mean(
     if how == "mean" or n == 1:
         return 1.0
     entropy = np.random.SeedSequence(20261124)
-    sample = _fine_field(entropy, 64, (0, 4096), n, np.zeros(4096), sigma_fine, k_shape, looks)
+    # 64 x 4096 recorded values; fewer columns when n is large (a coarse bin), so the draw stays
+    # near 2**24 sub-samples (the maximum of many sub-samples varies little)
+    cols = max(16, min(4096, _FINE_BUDGET // (64 * n)))
+    sample = _fine_field(entropy, 64, (0, cols), n, np.zeros(cols), sigma_fine, k_shape, looks)
     return float(_reduce(sample, n, how).mean())
 
 
@@ -254,8 +259,9 @@ def recorded_speckle_field(
     pings, bins = shape
     sigma_along = np.broadcast_to(np.asarray(sigma_along, dtype=np.float64), (bins,))
     out = np.empty(shape)
-    for lo in range(0, bins, _BLOCK_BINS):
-        hi = min(bins, lo + _BLOCK_BINS)
+    block = max(1, min(_BLOCK_BINS, _FINE_BUDGET // max(1, pings * subsamples)))
+    for lo in range(0, bins, block):
+        hi = min(bins, lo + block)
         fine = _fine_field(
             entropy, pings, (lo, hi), subsamples, sigma_along, resolution_samples, k_shape, looks
         )

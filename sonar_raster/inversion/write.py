@@ -12,7 +12,7 @@ import numpy as np
 from ..errors import SonarRasterError
 from .solver import Inversion
 
-INPUT_SUFFIXES = (".npy", ".exr", ".png")
+INPUT_SUFFIXES = (".npy", ".exr", ".png", ".tif", ".tiff")
 
 
 def read_side(path: Path, side: str | None) -> tuple[np.ndarray, str, dict]:
@@ -21,11 +21,12 @@ def read_side(path: Path, side: str | None) -> tuple[np.ndarray, str, dict]:
     ``.npy`` and ``.png`` hold one side (PNG grey levels are taken as linear intensity);
     ``.exr`` is the renderer's output (``port``/``starboard`` channels), or one side from
     another tool (one channel of any name, or equal R, G, B); its ``sonar:range_bin_m`` is
-    given back in the header dict.
+    given back in the header dict. ``.tif`` is one side too (float values as they are,
+    integers scaled to [0, 1]).
     """
     suffix = path.suffix.lower()
     if suffix not in INPUT_SUFFIXES:
-        raise SonarRasterError(f"{path}: unknown image type; use .npy, .exr or .png")
+        raise SonarRasterError(f"{path}: unknown image type; use .npy, .exr, .png or .tif")
     if not path.is_file():
         raise SonarRasterError(f"{path}: no such file")
     if suffix == ".exr":
@@ -36,12 +37,17 @@ def read_side(path: Path, side: str | None) -> tuple[np.ndarray, str, dict]:
         names = list(spec.channelnames)
         attrs = {attr.name: attr.value for attr in spec.extra_attribs}
         if not (names and all(n in SIDES for n in names)):  # another tool's EXR: one side
-            return _one_side_exr(pixels, names, path), side or "starboard", attrs
+            return _one_side(pixels, names, path), side or "starboard", attrs
         sides = {n: pixels[:, :, i] for i, n in enumerate(names)}
         name = side or ("starboard" if "starboard" in sides else next(iter(sides)))
         if name not in sides:
             raise SonarRasterError(f"{path}: no {name} channel (has {', '.join(sides)})")
         return sides[name].astype(np.float64), name, attrs
+    if suffix in (".tif", ".tiff"):  # another tool's image: float values as they are
+        from ..io.images import read_pixels
+
+        pixels, spec = read_pixels(path)
+        return _one_side(pixels, list(spec.channelnames), path), side or "starboard", {}
     if suffix == ".npy":
         try:
             data = np.load(path, allow_pickle=False)
@@ -60,8 +66,24 @@ def read_side(path: Path, side: str | None) -> tuple[np.ndarray, str, dict]:
     return np.asarray(data, dtype=np.float64), side or "starboard", {}
 
 
-def _one_side_exr(pixels: np.ndarray, names: list[str], path: Path) -> np.ndarray:
-    """The one side an EXR without port/starboard channels holds.
+def exr_sides(path: Path) -> list[str]:
+    """The sides ("port", "starboard") an EXR holds as the renderer writes them; [] otherwise."""
+    import OpenImageIO as oiio
+
+    from ..sonar import SIDES
+
+    if path.suffix.lower() != ".exr":
+        return []
+    inp = oiio.ImageInput.open(str(path))
+    if inp is None:
+        return []
+    names = list(inp.spec().channelnames)
+    inp.close()
+    return names if names and all(n in SIDES for n in names) else []
+
+
+def _one_side(pixels: np.ndarray, names: list[str], path: Path) -> np.ndarray:
+    """The one side an EXR without port/starboard channels, or a TIFF, holds.
 
     Its only channel, or its R, G and B when they are equal (a grey image; alpha ignored).
     """
@@ -74,7 +96,7 @@ def _one_side_exr(pixels: np.ndarray, names: list[str], path: Path) -> np.ndarra
         return pixels[:, :, colour[0]].astype(np.float64)
     raise SonarRasterError(
         f"{path}: channels {', '.join(names)} are not one side: give the renderer's port/"
-        "starboard EXR, a one-channel or grey EXR, or the side as .npy"
+        "starboard EXR, a one-channel or grey EXR or TIFF, or the side as .npy"
     )
 
 

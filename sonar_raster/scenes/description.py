@@ -318,7 +318,9 @@ def _table(data: dict, key: str, where: str) -> dict:
 
 def _take(table: dict, key: str, default: Any, kind: type | tuple, where: str) -> Any:
     value = table.pop(key, default)
-    if value is not None and not isinstance(value, kind):
+    kinds = kind if isinstance(kind, tuple) else (kind,)
+    wrong = value is not None and not isinstance(value, kind)
+    if wrong or (isinstance(value, bool) and bool not in kinds):  # TOML true is no number
         raise SonarRasterError(f"{where}: '{key}' has the wrong type ({type(value).__name__})")
     return value
 
@@ -329,7 +331,10 @@ def _no_leftovers(table: dict, where: str) -> None:
 
 
 def _vector(value: Any, n: tuple[int, ...], key: str, where: str) -> np.ndarray:
-    arr = np.asarray(value, dtype=np.float64) if isinstance(value, (list, tuple)) else None
+    numbers = isinstance(value, (list, tuple)) and all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) for v in value
+    )
+    arr = np.asarray(value, dtype=np.float64) if numbers else None
     if arr is None or arr.ndim != 1 or len(arr) not in n or not np.all(np.isfinite(arr)):
         sizes = " or ".join(str(k) for k in n)
         raise SonarRasterError(f"{where}: '{key}' must be a list of {sizes} finite numbers")
@@ -717,7 +722,7 @@ def _recorded(track: RecordedTrack, own: Trajectory, ground_z: float) -> tuple[T
 def _from_description(path: Path, ov: Overrides) -> SceneSetup:
     where = path.name
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        data = tomllib.loads(path.read_text(encoding="utf-8-sig"))  # a BOM from Windows editors
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise SonarRasterError(f"{where}: not valid TOML ({exc})") from None
     base = path.parent

@@ -480,3 +480,55 @@ def test_an_odd_scene_says_what_it_is(tmp_path, capsys, kind, message):
     assert main(["render", str(scene), "-o", str(tmp_path / "out.png"), "-q"]) == 2
     assert message in one_error_line(capsys.readouterr().err)
     assert not (tmp_path / "out.png").exists()
+
+
+# -- inputs the TOML and option fuzzer found (2026-11-27) --------------------------------------
+@pytest.mark.parametrize(
+    ("scene", "options", "message"),
+    [
+        (FLAT.format(pings=20), ["--seed", "-1"], "--seed: must be >= 0"),
+        (FLAT.format(pings=20), ["--gain-db", "5000"], "gain_db must be within ±300 dB"),
+        (FLAT.format(pings=20), ["--along-beam-deg", "1e6"], "along_beam_deg must be below 180"),
+        (FLAT.format(pings="true"), [], "'pings' has the wrong type (bool)"),
+        (
+            FLAT.format(pings=20).replace("start = [0.0, 0.0]", 'start = ["a", "b"]'),
+            [],
+            "'start' must be a list of 2 finite numbers",
+        ),
+        (
+            FLAT.format(pings=20).replace("start = [0.0, 0.0]", 'start = ["1", "2"]'),
+            [],
+            "'start' must be a list of 2 finite numbers",
+        ),
+    ],
+    ids=["negative seed", "gain 5000 dB", "along beam 1e6 deg", "bool pings", "text", "quoted"],
+)
+def test_a_fuzzed_scene_or_option_is_one_line(tmp_path, capsys, scene, options, message):
+    (tmp_path / "s.toml").write_text(scene)
+    out = tmp_path / "out.png"
+    with pytest.raises(SystemExit) if options[:1] == ["--seed"] else _nothing():
+        code = main(["render", str(tmp_path / "s.toml"), "-o", str(out), "-q", *options])
+        assert code == 2
+    assert message in capsys.readouterr().err.strip().splitlines()[-1]
+    assert not out.exists()
+
+
+def _nothing():
+    import contextlib
+
+    return contextlib.nullcontext()
+
+
+def test_a_scene_file_with_a_byte_order_mark_renders(tmp_path):
+    (tmp_path / "s.toml").write_bytes("\ufeff".encode() + FLAT.format(pings=20).encode())
+    assert main(["render", str(tmp_path / "s.toml"), "-o", str(tmp_path / "o.png"), "-q"]) == 0
+
+
+def test_a_dataset_config_with_nan_is_one_line_and_writes_nothing(tmp_path, capsys):
+    config = tmp_path / "d.toml"
+    config.write_text("[dataset]\ncount = 1\n[sonar]\nmax_range = nan\n")
+    assert main(["dataset", str(config), "-o", str(tmp_path / "out"), "-q"]) == 2
+    assert "'sonar.max_range' must be a finite number, got nan" in one_error_line(
+        capsys.readouterr().err
+    )
+    assert not (tmp_path / "out").exists()

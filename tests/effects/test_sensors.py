@@ -56,6 +56,17 @@ def test_ideal_is_the_raw_render_bit_for_bit(tmp_path):
     assert "level" not in _sidecar(png)["display_mapping"]
 
 
+def test_ideal_with_a_sensor_is_its_sonar_without_effects(tmp_path, capsys):
+    exr = tmp_path / "ideal.exr"
+    args = ["render", "default", "--pings", "8", "-q", "--ideal", "-o", str(exr)]
+    assert main([*args, "--sensor", "klein-3900-900"]) == 0
+    sidecar = _sidecar(exr)
+    assert sidecar["metadata"]["sensor_sonar"] == "klein-3900-900"
+    assert "effects" not in sidecar["metadata"]  # ideal: the raw image of that sonar
+    assert main([*args, "--sensor", "nonsense"]) == 2  # not silently dropped
+    assert "unknown sensor preset 'nonsense'" in capsys.readouterr().err
+
+
 def test_default_render_has_every_effect_of_the_default_sensor_and_no_zeros(tmp_path):
     exr = tmp_path / "real.exr"
     assert main(["render", "default", "--pings", "24", "-q", "--seed", "3", "-o", str(exr)]) == 0

@@ -632,7 +632,7 @@ def _exr(path, pixels, names, **attributes):
     out.close()
 
 
-def test_another_tools_exr_is_one_side(tmp_path):
+def test_another_tools_exr_or_tiff_is_one_side(tmp_path):
     from sonar_raster.inversion.write import read_side
 
     values = np.random.default_rng(0).exponential(size=(5, 7)).astype(np.float32)
@@ -644,6 +644,13 @@ def test_another_tools_exr_is_one_side(tmp_path):
         np.testing.assert_array_equal(image, values)
     assert "sonar:range_bin_m" not in attrs
     assert read_side(tmp_path / "y.exr", None)[2]["sonar:range_bin_m"] == pytest.approx(0.05)
+    from sonar_raster.inversion.write import exr_sides
+
+    assert exr_sides(tmp_path / "y.exr") == []  # so --method surface fits one side, not two
+    _exr(tmp_path / "sides.exr", np.stack([values, values], -1), ["port", "starboard"])
+    assert exr_sides(tmp_path / "sides.exr") == ["port", "starboard"]
+    _exr(tmp_path / "t.tif", values[:, :, None], ["Y"])  # a float TIFF of another tool
+    np.testing.assert_array_equal(read_side(tmp_path / "t.tif", None)[0], values)
     _exr(tmp_path / "colour.exr", np.stack([values, 2 * values, values], -1), list("RGB"))
     _exr(tmp_path / "two.exr", np.stack([values, values], -1), ["intensity", "mask"])
     for name in ("colour.exr", "two.exr"):

@@ -6,6 +6,7 @@ import logging
 import re
 
 import numpy as np
+import pytest
 from conftest import rect_seabed
 
 from sonar_raster.rendering.analytic import flat_seabed_profile
@@ -22,7 +23,7 @@ def _areas(tri: np.ndarray) -> np.ndarray:
 
 def test_pieces_near_the_box_cover_it_with_the_triangles_shape():
     rng = np.random.default_rng(3)
-    box = (-1.0, 2.0, -0.5, 1.5)
+    box = (-1.0, 2.0, -0.5, 1.5, -np.inf, np.inf)
     tri = rng.uniform(-400.0, 400.0, (30, 3, 3))
     pieces, parent = subdivide_within(tri, 0.5, box)
     edges = np.linalg.norm(pieces - np.roll(pieces, 1, axis=1), axis=2)
@@ -35,7 +36,7 @@ def test_pieces_near_the_box_cover_it_with_the_triangles_shape():
     # every point of a triangle inside the box lies in one of its kept pieces (by area: the
     # kept pieces of a triangle cover at least its area inside the box, and not more than the
     # box's neighbourhood holds)
-    x0, x1, y0, y1 = box
+    x0, x1, y0, y1 = box[:4]
     u, v = rng.uniform(size=(2, 40000))
     flip = u + v > 1
     u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
@@ -45,9 +46,20 @@ def test_pieces_near_the_box_cover_it_with_the_triangles_shape():
         area = np.linalg.norm(normal[k])
         kept = np.linalg.norm(_areas(pieces[parent == k]), axis=1).sum()
         assert kept >= inside.mean() * area - 3 * area * np.sqrt(inside.mean() / len(u))
-        # the box grown all round by the last coarse cut's pieces (16 final pieces, 8 m)
-        margin = (x1 - x0 + 16.0) * (y1 - y0 + 16.0)
+        # the box grown all round by a piece (< 0.5 m)
+        margin = (x1 - x0 + 1.0) * (y1 - y0 + 1.0)
         assert kept <= margin / max(abs(normal[k][2]) / area, 1e-3) + 1e-9
+
+
+def test_a_wall_kilometres_tall_is_cut_only_where_the_track_sees():
+    wall = np.array([[[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 0.0, 3000.0]]])  # a mast in mm
+    pieces, _ = subdivide_within(wall, 0.05, (-30.0, 30.0, -30.0, 30.0, -20.0, 40.0))
+    assert len(pieces) < 1_000_000  # 3.6e9 pieces of 5 cm without the height bound
+    assert pieces[..., 2].min() == 0.0 and 40.0 <= pieces[..., 2].max() < 40.05
+    area = 0.5 * np.linalg.norm(
+        np.cross(pieces[:, 1] - pieces[:, 0], pieces[:, 2] - pieces[:, 0]), axis=1
+    )
+    assert area.sum() == pytest.approx(2.0 * 40.0 * (1 - 40.0 / 6000.0), rel=1e-3)  # up to 40 m
 
 
 def test_a_plane_kilometres_wide_renders_as_one_the_swath_wide(gl, caplog):
@@ -64,3 +76,15 @@ def test_a_plane_kilometres_wide_renders_as_one_the_swath_wide(gl, caplog):
     np.testing.assert_allclose(images[1], images[0], rtol=1e-4, atol=1e-9)
     exact = flat_seabed_profile(sonar, 4.0, 0.5, 0.2).sum()  # both sides alike
     np.testing.assert_allclose(images[1].sum(axis=1), exact, rtol=1e-3)
+
+
+def test_relief_too_steep_to_cut_up_is_one_line_before_any_work(gl):
+    from sonar_raster.errors import SonarRasterError
+    from sonar_raster.scenes.seabed import from_grid
+
+    z = 200.0 * (np.indices((21, 41)).sum(axis=0) % 2)  # 200 m ripples at 1 m: 64 M pieces
+    scene = build_scene([from_grid(z, 1.0, 1.0, x0=-20.0, y0=-10.0).mesh(0.5)])
+    sonar = Sonar(max_range=12.0, range_bin=0.05, tilt=0.0)
+    traj = Trajectory.straight((0.0, 0.0, 4.0), 0.0, 0.2, 4)
+    with pytest.raises(SonarRasterError, match=r"would be cut into over [\d,]+ pieces of at most"):
+        gl.render(scene, sonar, traj)

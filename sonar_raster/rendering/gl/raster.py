@@ -28,11 +28,25 @@ from ...trajectory import Segment, Trajectory
 from .context import create_context, release_context
 from .heightfield import Grid, find_grid
 from .programs import specialise
-from .subdivide import subdivide, subdivide_within, subdivision_counts
+from .subdivide import TooManyPieces, subdivide, subdivide_within, subdivision_counts
 from .tiles import TileIndex
 from .warp import Warp
 
 log = logging.getLogger(__name__)
+
+#: Most pieces subdivision may add (16.8 M: 0.6 GB of float32 corners, more in temporaries).
+MAX_PIECES = 1 << 24
+
+
+def _check_pieces(pieces: int, max_edge: float) -> None:
+    """One line when subdivision would add more than :data:`MAX_PIECES` triangles."""
+    if pieces > MAX_PIECES:
+        raise SonarRasterError(
+            f"the scene's triangles would be cut into over {pieces:,} pieces of at most "
+            f"{max_edge:g} m: relief far too steep or a model far too large (check its units, "
+            "amplitude or scale), or use a coarser --range-bin"
+        )
+
 
 #: Pieces per edge beyond which only the pieces of a triangle that the track can see are
 #: made (256² = 65 536 pieces: a plane 256 × 20 range bins wide is left whole).
@@ -284,12 +298,13 @@ class RasterRenderer:
         scene: Scene,
         origin: np.ndarray,
         max_edge: float,
-        box: tuple[float, float, float, float] | None = None,
+        box: tuple[float, ...] | None = None,
     ) -> None:
         """Shift the scene to ``origin`` (float64), subdivide long triangles, upload vertices.
 
         Triangles that subdivision would cut into more than ``CLIP_COUNT²`` pieces keep only
-        the pieces that reach into ``box`` (local ``x0, x1, y0, y1``: what the track can see;
+        the pieces that reach into ``box`` (local ``x0, x1, y0, y1, z0, z1``: what the track
+        can see;
         :func:`subdivide_within`), so a model read in the wrong units, or a two-triangle plane
         kilometres wide, costs what the swath holds.
 
@@ -307,10 +322,17 @@ class RasterRenderer:
         counts = subdivision_counts(vertices, faces, max_edge)
         big = counts > 1
         if big.any():
-            corners = vertices[faces[big]].astype(np.float64)
             huge = counts[big] > CLIP_COUNT
+            if box is None:
+                huge[:] = False
+            _check_pieces(int(np.sum(counts[big][~huge] ** 2)), max_edge)
+            corners = vertices[faces[big]].astype(np.float64)
             if huge.any() and box is not None:  # only what the track can see is cut up
-                near, within = subdivide_within(corners[huge], max_edge, box)
+                try:
+                    near, within = subdivide_within(corners[huge], max_edge, box, MAX_PIECES)
+                except TooManyPieces as stop:
+                    _check_pieces(int(stop.args[0]), max_edge)
+                    raise
                 rest, whole = subdivide(corners[~huge], counts[big][~huge])
                 pieces = np.concatenate([rest, near])
                 parent = np.concatenate(
@@ -547,10 +569,10 @@ class RasterRenderer:
         with self.ctx:
             origin = trajectory.positions[0].copy()
             max_edge = self.settings.max_edge or 20.0 * sonar.range_bin
-            local = trajectory.positions[:, :2] - origin[:2]
+            local = trajectory.positions - origin
             reach = sonar.max_range + max_edge  # no echo comes from further than max_range
             lo, hi = local.min(axis=0) - reach, local.max(axis=0) + reach
-            box = (float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]))
+            box = tuple(float(v) for v in (lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]))
             self._upload(scene, origin, max_edge, box)
             plan = self._plan(scene, sonar, trajectory)
             if self.settings.cull and self._rasters(plan, sonar):

@@ -84,19 +84,24 @@ def subdivide(tri: np.ndarray, counts: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return np.concatenate(out)[order], np.concatenate(parents)[order]
 
 
+class TooManyPieces(Exception):
+    """Subdivision stopped: it would make more pieces than asked for (``args[0]`` so far)."""
+
+
 def subdivide_within(
     tri: np.ndarray,
     max_edge: float,
-    box: tuple[float, float, float, float],
-    split: int = 16,
+    box: tuple[float, ...],
+    most: int | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Subdivide triangles to ``max_edge``, keeping only pieces that reach into a box.
+    """Split triangles until no edge exceeds ``max_edge``, keeping only pieces near a box.
 
-    Each triangle is cut into ``split²`` congruent pieces (:func:`subdivide`), the pieces whose
-    bounding rectangle misses the vertical box ``x0 <= x <= x1, y0 <= y <= y1`` are dropped,
-    and the rest cut again until their edges are short enough; so a triangle kilometres wide
-    costs what the box holds, and every piece is similar to its triangle (no slivers, which
-    the raster resolves badly near nadir).
+    Each round halves every piece still too long at the midpoint of its longest edge (the
+    two halves keep the parent's orientation) and drops the pieces whose bounding box misses
+    ``x0 <= x <= x1, y0 <= y <= y1, z0 <= z <= z1``; so a triangle kilometres wide, or a wall
+    kilometres tall, costs what the box holds. Longest-edge bisection keeps the pieces' angles
+    bounded by the triangle's (no slivers beyond its own: the raster resolves slivers badly
+    near nadir), and halves a right triangle into similar ones.
 
     Parameters
     ----------
@@ -105,9 +110,9 @@ def subdivide_within(
     max_edge : float
         Longest edge allowed after subdivision, metres.
     box : tuple of float
-        ``(x0, x1, y0, y1)``.
-    split : int
-        Pieces per edge of each coarse cut.
+        ``(x0, x1, y0, y1, z0, z1)``.
+    most : int, optional
+        Raise :class:`TooManyPieces` once more pieces than this are made or in the making.
 
     Returns
     -------
@@ -115,17 +120,27 @@ def subdivide_within(
     parent : ndarray, shape (p,), int64
         Index of each piece's triangle; a triangle wholly outside the box has none.
     """
-    x0, x1, y0, y1 = box
+    lower, upper = np.asarray(box[0::2]), np.asarray(box[1::2])
     pieces, parent = np.asarray(tri, dtype=np.float64), np.arange(len(tri))
-    while True:
-        flat = pieces.reshape(-1, 3)
-        counts = subdivision_counts(flat, np.arange(len(flat)).reshape(-1, 3), max_edge)
-        coarse = np.minimum(counts, split)
-        if np.all(counts <= split):
-            pieces, within = subdivide(pieces, counts)
-            return pieces, parent[within]
-        pieces, within = subdivide(pieces, coarse)
-        parent = parent[within]
-        lo, hi = pieces[:, :, :2].min(axis=1), pieces[:, :, :2].max(axis=1)
-        near = (hi[:, 0] >= x0) & (lo[:, 0] <= x1) & (hi[:, 1] >= y0) & (lo[:, 1] <= y1)
+    done, done_parent = [], []
+    limit = max_edge * max_edge
+    while len(pieces):
+        near = np.all((pieces.max(axis=1) >= lower) & (pieces.min(axis=1) <= upper), axis=1)
         pieces, parent = pieces[near], parent[near]
+        edges = np.stack([pieces[:, (k + 1) % 3] - pieces[:, k] for k in range(3)], axis=1)
+        length2 = np.einsum("mkj,mkj->mk", edges, edges)
+        short = length2.max(axis=1) <= limit
+        done.append(pieces[short])
+        done_parent.append(parent[short])
+        pieces, parent, length2 = pieces[~short], parent[~short], length2[~short]
+        made = sum(len(d) for d in done) + 2 * len(pieces)
+        if most is not None and made > most:
+            raise TooManyPieces(made)
+        # longest edge k runs from corner k to k+1; the opposite corner is k+2
+        k = np.argmax(length2, axis=1)
+        rows = np.arange(len(pieces))
+        a, b, c = (pieces[rows, (k + j) % 3] for j in range(3))
+        mid = 0.5 * (a + b)
+        pieces = np.concatenate([np.stack([a, mid, c], 1), np.stack([mid, b, c], 1)])
+        parent = np.concatenate([parent, parent])
+    return np.concatenate(done), np.concatenate(done_parent)
