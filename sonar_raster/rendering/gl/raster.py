@@ -304,9 +304,9 @@ class RasterRenderer:
 
         Triangles that subdivision would cut into more than ``CLIP_COUNT²`` pieces keep only
         the pieces that reach into ``box`` (local ``x0, x1, y0, y1, z0, z1``: what the track
-        can see;
-        :func:`subdivide_within`), so a model read in the wrong units, or a two-triangle plane
-        kilometres wide, costs what the swath holds.
+        can see; :func:`subdivide_within`), so a model read in the wrong units, or a
+        two-triangle plane kilometres wide, costs what the swath holds. More than
+        :data:`MAX_PIECES` added pieces is a :class:`SonarRasterError`.
 
         Memory is kept near one float32 copy of the vertices: the index and reflectivity
         buffers of the whole scene are made only if a draw needs the whole scene, and labels
