@@ -254,6 +254,11 @@ class Effects:
                 f"effects: unknown downsample {self.downsample!r}; "
                 f"use {', '.join(DOWNSAMPLE_KINDS)}"
             )
+        if self.downsample != "off" and self.sample_spacing_m is None:
+            raise SonarRasterError(
+                f"effects: downsample {self.downsample!r} needs the recorder's sample spacing: "
+                "give sample_spacing_m (metres; on the command line add --sample-spacing M)"
+            )
         if self.tvg not in TVG_KINDS:
             raise SonarRasterError(f"effects: unknown tvg {self.tvg!r}; use {', '.join(TVG_KINDS)}")
         self._check_curve()

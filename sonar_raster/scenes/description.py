@@ -681,6 +681,13 @@ def _trajectory(
                 "straight tracks (start, heading_deg, spacing in [trajectory])"
             )
         traj = Trajectory.from_csv(str(path))
+        below = traj.positions[:, 2] <= ground_z
+        if below.all():
+            raise SonarRasterError(
+                f"{where}: every ping of {path.name} is at or below the seabed's level "
+                f"(z {traj.positions[:, 2].max():g} m, seabed at {ground_z:g} m): z is up, "
+                "the sonar's height; check its sign or the seabed's depth"
+            )
         return traj, float(traj.positions[0, 2] - ground_z)
     start = _vector(_take(table, "start", [0.0, 0.0], list, where), (2,), "start", where)
     altitude = float(_take(table, "altitude", 10.0, number, where))

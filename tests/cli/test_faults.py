@@ -532,3 +532,14 @@ def test_a_dataset_config_with_nan_is_one_line_and_writes_nothing(tmp_path, caps
         capsys.readouterr().err
     )
     assert not (tmp_path / "out").exists()
+
+
+def test_a_csv_track_below_the_seabed_is_one_line(tmp_path, capsys):
+    rows = "\n".join(f"{0.1 * k},0,-3,0" for k in range(10))
+    (tmp_path / "t.csv").write_text("y,x,z,heading_deg\n" + rows + "\n")
+    scene = FLAT.format(pings=10).split("[trajectory]")[0] + '[trajectory]\ncsv = "t.csv"\n'
+    (tmp_path / "s.toml").write_text(scene)
+    out = tmp_path / "o.png"
+    assert main(["render", str(tmp_path / "s.toml"), "-o", str(out), "-q"]) == 2
+    assert "at or below the seabed's level" in one_error_line(capsys.readouterr().err)
+    assert not out.exists()

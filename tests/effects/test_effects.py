@@ -695,3 +695,12 @@ def test_bad_effect_options_fail_before_any_render(tmp_path, capsys, monkeypatch
         err = capsys.readouterr().err
         assert code == 2 and err.count("\n") == 1 and "add --downsample" in err, (model, err)
     assert not out.exists()
+
+
+def test_downsampling_without_a_sample_spacing_is_refused_not_ignored():
+    from sonar_raster.effects.chain import Effects
+
+    with pytest.raises(SonarRasterError, match="downsample 'max' needs the recorder's sample"):
+        Effects.from_table({"speckle": "exponential", "downsample": "max"}, where="[effects]")
+    fx = Effects.from_table({"downsample": "mean", "sample_spacing_m": 0.01}, where="[effects]")
+    assert fx.downsample == "mean"
