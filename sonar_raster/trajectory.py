@@ -10,6 +10,7 @@ track. Across-track is positive to starboard.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -155,13 +156,32 @@ class Trajectory:
         the course over ground are crab: the fans follow the heading, not the course.
         """
         try:
-            data: Any = np.genfromtxt(path, delimiter=",", names=True, dtype=np.float64, ndmin=1)
-        except (OSError, ValueError) as exc:
-            raise SonarRasterError(f"cannot read trajectory CSV {path}: {exc}") from None
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", UserWarning)  # "Empty input file": said below
+                data: Any = np.genfromtxt(
+                    path, delimiter=",", names=True, dtype=np.float64, ndmin=1, encoding="utf-8-sig"
+                )
+        except IndexError:  # numpy's way of saying there is no header line
+            raise SonarRasterError(
+                f"{path}: trajectory CSV is empty; it needs a header x,y,z,heading_deg and rows"
+            ) from None
+        except (OSError, ValueError, UnicodeDecodeError) as exc:
+            detail = " ".join(str(exc).replace("Some errors were detected !", "").split())
+            raise SonarRasterError(f"cannot read trajectory CSV {path}: {detail}") from None
         names = data.dtype.names or ()
         missing = [c for c in ("x", "y", "z", "heading_deg") if c not in names]
         if missing:
             raise SonarRasterError(f"{path}: trajectory CSV lacks column(s) {', '.join(missing)}")
+        if len(data) == 0 or data.shape == ():
+            raise SonarRasterError(f"{path}: trajectory CSV has a header but no rows")
+        used = [c for c in ("x", "y", "z", "heading_deg", "roll_deg", "pitch_deg") if c in names]
+        bad = ~np.all([np.isfinite(data[c]) for c in used], axis=0)
+        if bad.any():
+            row = int(np.flatnonzero(bad)[0])
+            raise SonarRasterError(
+                f"{path}: line {row + 2} has an empty or non-numeric cell (or inf/nan) in "
+                f"{', '.join(used)}; {int(bad.sum())} row(s) like it"
+            )
         roll = np.radians(data["roll_deg"]) if "roll_deg" in names else np.zeros(len(data))
         pitch = np.radians(data["pitch_deg"]) if "pitch_deg" in names else np.zeros(len(data))
         pos = np.stack([data["x"], data["y"], data["z"]], axis=1)

@@ -158,3 +158,29 @@ def test_a_diving_track_leaves_no_empty_rows(gl):
     image = gl.render(scene, sonar, Trajectory(pos, np.zeros(n), 0.0))
     for side in sonar.sides:
         assert np.all(image.sides[side].sum(axis=1) > 0), f"{side}: empty rows"
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("x,y,z,heading_deg\n0,0,5,0\n0,0.1,5\n", r"Line #3 \(got 3 columns instead of 4\)$"),
+        ("x,y,z,heading_deg\n0,0,5,0\n0,abc,5,0\n", r"line 3 has an empty or non-numeric cell"),
+        ("x,y,z,heading_deg\n", "has a header but no rows"),
+        ("", "trajectory CSV is empty"),
+    ],
+    ids=["short row", "text cell", "header only", "empty"],
+)
+def test_a_bad_track_csv_is_one_line_naming_the_line(tmp_path, text, message):
+    from sonar_raster.errors import SonarRasterError
+
+    path = tmp_path / "track.csv"
+    path.write_text(text)
+    with pytest.raises(SonarRasterError, match=message) as info:
+        Trajectory.from_csv(str(path))
+    assert "\n" not in str(info.value)
+
+
+def test_a_track_csv_with_a_byte_order_mark_reads(tmp_path):
+    path = tmp_path / "track.csv"
+    path.write_bytes("\ufeffx,y,z,heading_deg\n0,0,5,0\n0,0.1,5,0\n".encode())
+    assert Trajectory.from_csv(str(path)).n_pings == 2
