@@ -47,7 +47,7 @@ import os
 import struct
 from collections import Counter
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, BinaryIO
 
@@ -108,6 +108,10 @@ def _pyxtf() -> Any:
     return pyxtf
 
 
+#: Largest share of a float channel's samples that may be NaN or infinite and set to 0.
+MAX_BLANKED = 0.1
+
+
 @dataclass(frozen=True)
 class XtfPing:
     """One side-scan ping of an XTF file.
@@ -136,6 +140,8 @@ class XtfPing:
         field is not an altitude.
     depth : float
         Sensor depth below the surface, metres; NaN when the field is not a depth.
+    blanked : int
+        NaN or infinite samples of a float channel set to 0 (see :data:`MAX_BLANKED`).
     """
 
     index: int
@@ -151,6 +157,7 @@ class XtfPing:
     pitch: float
     altitude: float
     depth: float
+    blanked: int = 0
 
     @property
     def has_navigation(self) -> bool:
@@ -380,6 +387,7 @@ class XtfReader:
         """The ping of a sonar packet, None without side-scan channels; _BadPacket if unusable."""
         ping, channels = self._decode(raw)
         sides: dict[str, np.ndarray] = {}
+        blanked = 0
         spacing: dict[str, float] = {}
         speed = 0.0
         for chan, data in channels:
@@ -389,7 +397,8 @@ class XtfReader:
             if (len(data) != chan.NumSamples and chan.NumSamples > 0) or len(data) == 0:
                 raise _BadPacket("samples", f"{len(data)} of {chan.NumSamples} samples")
             speed = _sound_speed(float(ping.SoundVelocity), chan)
-            values = _scaled(data, int(chan.Weight))
+            values, blank = _scaled(data, int(chan.Weight))
+            blanked += blank
             sides[side] = values[::-1].copy() if side == "port" else values
             spacing[side] = _sample_spacing(chan, len(data), speed)
         if not sides:
@@ -398,7 +407,7 @@ class XtfReader:
         if not all(math.isfinite(b) and b > 0 for b in bins) or max(bins) > min(bins) * (1 + 1e-5):
             shown = " and ".join(f"{b:.4g}" for b in bins)
             raise _BadPacket("spacing", f"sample spacing {shown} m")
-        return _make_ping(ping, index, sides, bins[0], speed)
+        return replace(_make_ping(ping, index, sides, bins[0], speed), blanked=blanked)
 
     def _decode(self, raw: bytes) -> tuple[Any, list[tuple[Any, np.ndarray]]]:
         """Ping header and (channel header, samples) pairs, laid out as pyxtf reads them."""
@@ -488,17 +497,31 @@ def _sample_spacing(chan: Any, samples: int, speed: float) -> float:
     return float(chan.TimeDuration) * speed / 2.0 / samples
 
 
-def _scaled(data: np.ndarray, weight: int) -> np.ndarray:
-    """Samples as float32 times ``2 ** -weight``; _BadPacket for a wild weight or non-finite."""
+def _scaled(data: np.ndarray, weight: int) -> tuple[np.ndarray, int]:
+    """Samples as float32 times ``2 ** -weight``, and how many non-finite ones were set to 0.
+
+    A few NaN or infinite samples of a float channel (at most :data:`MAX_BLANKED` of them; a
+    processing program's "no data") become 0, no echo; more, or any from a weight that
+    overflows, make the packet a _BadPacket, as does a wild weight.
+    """
     if abs(weight) > MAX_WEIGHT:
         raise _BadPacket("Weight", f"Weight {weight}, beyond {MAX_WEIGHT} either way")
     values = data.astype(np.float32)
     if weight:
         with np.errstate(over="ignore"):
             values *= np.float32(2.0**-weight)
-    if (data.dtype.kind == "f" or weight < 0) and not np.all(np.isfinite(values)):
-        raise _BadPacket("samples", "non-finite sample values")
-    return values
+    if data.dtype.kind != "f" and weight >= 0:
+        return values, 0
+    bad = ~np.isfinite(values)
+    blanked = int(bad.sum())
+    if blanked and (data.dtype.kind != "f" or blanked > MAX_BLANKED * len(values)):
+        raise _BadPacket("samples", f"{blanked} non-finite sample values of {len(values)}")
+    if blanked:
+        bad &= ~np.isfinite(data)  # the file's own NaN/inf, not an overflow of the weight
+        if int(bad.sum()) != blanked:
+            raise _BadPacket("samples", "non-finite sample values")
+        values[bad] = 0.0
+    return values, blanked
 
 
 def _ping_time(ping: Any) -> float:
@@ -554,13 +577,21 @@ def iter_pings(path: str | os.PathLike) -> Iterator[XtfPing]:
     Skipped pings are logged in one warning line once the file has been read through.
     """
     with XtfReader(path) as reader:
-        yield from reader
-        if reader.skipped:
-            log.warning("%s: %s", path, skip_summary(reader.skipped, reader.count))
+        blanked = [0, 0]
+        for ping in reader:
+            blanked[0] += ping.blanked
+            blanked[1] += ping.blanked > 0
+            yield ping
+        if reader.skipped or blanked[0]:
+            summary = skip_summary(reader.skipped, reader.count, None, (blanked[0], blanked[1]))
+            log.warning("%s: %s", path, summary)
 
 
 def skip_summary(
-    skipped: list[SkippedPing], total: int | None = None, rejected: dict[int, str] | None = None
+    skipped: list[SkippedPing],
+    total: int | None = None,
+    rejected: dict[int, str] | None = None,
+    blanked: tuple[int, int] = (0, 0),
 ) -> str:
     """One line saying which pings were skipped and why, and which fixes were interpolated.
 
@@ -571,6 +602,8 @@ def skip_summary(
         Pings read (skipped included), for "skipped 2 of 461 pings".
     rejected : dict of int to str, optional
         Ping index to the reason its position or heading was rejected and interpolated.
+    blanked : (int, int)
+        Non-finite samples set to 0, and the pings they were in.
     """
     parts = []
     if skipped:
@@ -581,6 +614,11 @@ def skip_summary(
         n = len(rejected)
         why = _grouped([(k, "", reason) for k, reason in sorted(rejected.items())])
         parts.append(f"interpolated the navigation of {n} {'ping' if n == 1 else 'pings'} ({why})")
+    if blanked[0]:
+        parts.append(
+            f"set {blanked[0]} non-finite samples to 0 (no echo) in {blanked[1]} "
+            f"{'ping' if blanked[1] == 1 else 'pings'}"
+        )
     return "; ".join(parts)
 
 
@@ -807,8 +845,9 @@ def read_xtf(
     )
     nav = _navigation(rows, units)
     rejected = {rows[k].index: why for k, why in nav.rejected.items()}
-    if skipped or rejected:
-        log.warning("%s: %s", path, skip_summary(skipped, len(chosen), rejected))
+    blanked = (sum(p.blanked for p in rows), sum(p.blanked > 0 for p in rows))
+    if skipped or rejected or blanked[0]:
+        log.warning("%s: %s", path, skip_summary(skipped, len(chosen), rejected, blanked))
     meta = {
         "source": str(path),
         "format": "xtf",
@@ -820,6 +859,7 @@ def read_xtf(
         "first_ping_index": first.index,
         "skipped_pings": [{"index": s.index, "reason": f"{s.kind}: {s.detail}"} for s in skipped],
         "rejected_fixes": [{"index": k, "reason": why} for k, why in sorted(rejected.items())],
+        "blanked_samples": blanked[0],
     }
     return SonarImage(sides, sonar, meta), nav
 

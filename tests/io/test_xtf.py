@@ -5,6 +5,7 @@ from __future__ import annotations
 import ctypes
 import gc
 import math
+from dataclasses import replace
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -458,3 +459,23 @@ def test_invert_xtf_writes_every_product_or_none(tmp_path, monkeypatch, capsys):
     )  # fmt: skip
     assert status == 2 and "No space left" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_a_few_nan_samples_of_a_float_file_become_zero_and_are_counted(tmp_path, simulated, caplog):
+    import struct
+
+    image, track = simulated
+    marked = {s: v.astype(np.float32).copy() for s, v in image.sides.items()}
+    marked["starboard"][5, 100] = marked["port"][7, 3] = 12345.678  # found again in the bytes
+    marked["starboard"][9, :40] = 23456.789  # 40 of 300 samples: over MAX_BLANKED, skipped
+    path = write_xtf(tmp_path / "sim.xtf", replace(image, sides=marked), track)
+    data = path.read_bytes()
+    for value in (12345.678, 23456.789):
+        data = data.replace(struct.pack("<f", value), struct.pack("<f", float("nan")))
+    path.write_bytes(data)
+    back, _ = read_xtf(path)
+    assert back.metadata["ping_indices"] == [k for k in range(40) if k != 9]
+    assert back.metadata["blanked_samples"] == 2
+    assert back.sides["starboard"][5, 100] == 0.0 and back.sides["port"][7, 3] == 0.0
+    assert np.all(np.isfinite(back.sides["starboard"]))
+    assert "set 2 non-finite samples to 0 (no echo) in 2 pings" in caplog.text
