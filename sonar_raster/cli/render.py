@@ -401,6 +401,7 @@ def run(args: argparse.Namespace) -> int:
         from ..effects.chain import apply_effects
 
         image = apply_effects(image, effects, seed=args.seed, trajectory=setup.trajectory)
+    _warn_blank(image, effects)
     written = _write(args, setup, image, outputs)
     if not args.quiet:
         pings, bins = image.shape
@@ -411,6 +412,23 @@ def run(args: argparse.Namespace) -> int:
         for path in dict.fromkeys(written):
             print(f"wrote {path}")
     return 0
+
+
+def _warn_blank(image: Any, effects: Any) -> None:
+    """Warn when every pixel of the image is zero (it is still written: it may be meant)."""
+    import numpy as np
+
+    from ..errors import InputWarning
+
+    if any(np.any(side) for side in image.sides.values()):
+        return
+    why = (
+        "the effects took it all (a very strong absorption, a nadir gap near 90 degrees, "
+        "a K shape near 0?)"
+        if effects is not None
+        else "nothing in the swath returned an echo"
+    )
+    warnings.warn(f"the image is zero everywhere: {why}", InputWarning, stacklevel=2)
 
 
 def _check_outputs(outputs: list[str]) -> list[Path]:

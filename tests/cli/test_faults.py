@@ -543,3 +543,17 @@ def test_a_csv_track_below_the_seabed_is_one_line(tmp_path, capsys):
     assert main(["render", str(tmp_path / "s.toml"), "-o", str(out), "-q"]) == 2
     assert "at or below the seabed's level" in one_error_line(capsys.readouterr().err)
     assert not out.exists()
+
+
+def test_an_image_the_effects_leave_all_zero_warns_and_is_written(tmp_path, capsys):
+    (tmp_path / "s.toml").write_text(FLAT.format(pings=10) + "[effects]\nnadir_gap_deg = 89.9\n")
+    out = tmp_path / "o.exr"
+    assert main(["render", str(tmp_path / "s.toml"), "-o", str(out), "-q"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        "sonar-raster: warning: the image is zero everywhere: the effects took it all (a very "
+        "strong absorption, a nadir gap near 90 degrees, a K shape near 0?)"
+    ]
+    assert out.exists()
+    assert main(["render", str(tmp_path / "s.toml"), "-o", str(out), "-q", "--ideal"]) == 0
+    assert capsys.readouterr().err == ""  # the raw image has echoes
