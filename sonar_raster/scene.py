@@ -128,7 +128,7 @@ def _bounds(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
 _FACE_BLOCK = 1 << 20
 
 
-def _clean_faces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+def clean_faces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Boolean mask of faces that are non-degenerate (positive area, distinct corners)."""
     edge2 = max(float(np.ptp(vertices, axis=0).max()) ** 2, 1e-300) if len(vertices) else 1.0
     keep = np.empty(len(faces), dtype=bool)
@@ -197,7 +197,7 @@ def build_scene(parts: list[MeshPart]) -> Scene:
             raise SonarRasterError(
                 f"object '{part.name}' has a negative or non-finite reflectivity; use R >= 0"
             )
-        keep = _clean_faces(v, f) if len(f) else np.zeros(0, dtype=bool)
+        keep = clean_faces(v, f) if len(f) else np.zeros(0, dtype=bool)
         dropped += int((~keep).sum())
         if not keep.all():
             f, r = f[keep], r[keep]

@@ -172,7 +172,7 @@ class Trajectory:
         missing = [c for c in ("x", "y", "z", "heading_deg") if c not in names]
         if missing:
             raise SonarRasterError(f"{path}: trajectory CSV lacks column(s) {', '.join(missing)}")
-        if len(data) == 0 or data.shape == ():
+        if len(data) == 0:
             raise SonarRasterError(f"{path}: trajectory CSV has a header but no rows")
         used = [c for c in ("x", "y", "z", "heading_deg", "roll_deg", "pitch_deg") if c in names]
         bad = ~np.all([np.isfinite(data[c]) for c in used], axis=0)

@@ -274,14 +274,9 @@ def effects_from_args(args: argparse.Namespace, scene_effects: Any) -> Any:
 
 
 def _check_downsample(args: argparse.Namespace, effects: Any) -> None:
-    """--downsample and --sample-spacing only act together; one without the other is an error."""
+    """Refuse --sample-spacing with downsampling off (Effects refuses the converse itself)."""
     from ..errors import SonarRasterError
 
-    if args.downsample not in (None, "off") and effects.sample_spacing_m is None:
-        raise SonarRasterError(
-            f"--downsample {args.downsample} needs the recorder's sample spacing: "
-            "add --sample-spacing M (metres)"
-        )
     if args.sample_spacing is not None and effects.downsample == "off":
         raise SonarRasterError(
             "--sample-spacing does nothing while downsampling is off: add --downsample max or mean"

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import SonarRasterError
-from ..scene import MeshPart
+from ..scene import MeshPart, clean_faces
 from .formats import MODEL_SUFFIXES, VRML_SUFFIXES
 from .vrml import load_vrml
 
@@ -64,22 +64,12 @@ def load_model(path: str | Path) -> list[MeshPart]:
         raise SonarRasterError(
             f"model file '{path.name}' holds no triangles; export the model as a triangle mesh"
         )
-    if not any(_has_area(part) for part in parts):
+    if not any(clean_faces(p.vertices, p.faces).any() for p in parts):  # as build_scene drops
         raise SonarRasterError(
             f"model file '{path.name}' holds only triangles of zero area (degenerate, or scaled "
             "to nothing); check the model"
         )
     return parts
-
-
-def _has_area(part: MeshPart) -> bool:
-    """Whether any finite triangle of ``part`` has a non-zero area."""
-    corners = np.asarray(part.vertices, dtype=np.float64)[np.asarray(part.faces)]
-    with np.errstate(all="ignore"):
-        area = np.linalg.norm(
-            np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1
-        )
-    return bool(np.any(np.isfinite(area) & (area > 0)))
 
 
 def _load_trimesh(path: Path) -> list[MeshPart]:

@@ -809,7 +809,7 @@ def _from_model(path: Path, ov: Overrides) -> SceneSetup:
         traj = track.placed(middle, 0.0)
     else:
         traj = _auto_track(ov, sonar, middle, along, heading, altitude, size)
-    _warn_inside(path.name, objects, traj)
+    _warn_inside(path.name, low + shift, high + shift, traj)
     xy = np.vstack([traj.positions[:, :2], target])
     reach = sonar.max_range + 10.0
     lo, hi = xy.min(axis=0) - reach, xy.max(axis=0) + reach
@@ -914,10 +914,8 @@ def _spacing(ov: Overrides, sonar: Sonar) -> float | None:
     return ov.ping_spacing
 
 
-def _warn_inside(name: str, parts: list[MeshPart], traj: Trajectory) -> None:
+def _warn_inside(name: str, low: np.ndarray, high: np.ndarray, traj: Trajectory) -> None:
     """Warn when the track runs inside the model's bounding box (it images from within)."""
-    corners = np.concatenate([p.vertices for p in parts])
-    low, high = corners.min(axis=0), corners.max(axis=0)
     inside = np.all((traj.positions >= low) & (traj.positions <= high), axis=1)
     if inside.any():
         altitude = float(np.median(traj.positions[inside, 2]))

@@ -322,9 +322,7 @@ class RasterRenderer:
         counts = subdivision_counts(vertices, faces, max_edge)
         big = counts > 1
         if big.any():
-            huge = counts[big] > CLIP_COUNT
-            if box is None:
-                huge[:] = False
+            huge = (counts[big] > CLIP_COUNT) & (box is not None)
             _check_pieces(int(np.sum(counts[big][~huge] ** 2)), max_edge)
             corners = vertices[faces[big]].astype(np.float64)
             if huge.any() and box is not None:  # only what the track can see is cut up
