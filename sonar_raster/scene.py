@@ -130,20 +130,19 @@ _FACE_BLOCK = 1 << 20
 
 def clean_faces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Boolean mask of faces that are non-degenerate (positive area, distinct corners)."""
-    edge2 = max(float(np.ptp(vertices, axis=0).max()) ** 2, 1e-300) if len(vertices) else 1.0
+    span = float(np.ptp(vertices, axis=0).max()) if len(vertices) else 1.0
+    scale = 1.0 / span if span > 0 else 1.0  # relative edges: no overflow at absurd sizes
     keep = np.empty(len(faces), dtype=bool)
     for a in range(0, len(faces), _FACE_BLOCK):
         f = faces[a : a + _FACE_BLOCK]
         v0 = vertices[f[:, 0]]
-        e1 = vertices[f[:, 1]] - v0
-        e2 = vertices[f[:, 2]] - v0
+        e1 = (vertices[f[:, 1]] - v0) * scale
+        e2 = (vertices[f[:, 2]] - v0) * scale
         # |e1 x e2|², written out by component (np.cross and a (m, 3, 3) gather are slower).
         cx = e1[:, 1] * e2[:, 2] - e1[:, 2] * e2[:, 1]
         cy = e1[:, 2] * e2[:, 0] - e1[:, 0] * e2[:, 2]
         cz = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
-        keep[a : a + _FACE_BLOCK] = (
-            cx * cx + cy * cy + cz * cz > (_DEGENERATE_REL_AREA * edge2) ** 2
-        )
+        keep[a : a + _FACE_BLOCK] = cx * cx + cy * cy + cz * cz > _DEGENERATE_REL_AREA**2
     return keep
 
 

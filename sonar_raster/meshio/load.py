@@ -64,7 +64,9 @@ def load_model(path: str | Path) -> list[MeshPart]:
         raise SonarRasterError(
             f"model file '{path.name}' holds no triangles; export the model as a triangle mesh"
         )
-    if not any(clean_faces(p.vertices, p.faces).any() for p in parts):  # as build_scene drops
+    with np.errstate(all="ignore"):  # absurd coordinates overflow here; build_scene says so
+        kept = any(clean_faces(p.vertices, p.faces).any() for p in parts)  # as build_scene drops
+    if not kept:
         raise SonarRasterError(
             f"model file '{path.name}' holds only triangles of zero area (degenerate, or scaled "
             "to nothing); check the model"

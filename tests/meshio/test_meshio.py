@@ -280,3 +280,10 @@ def test_unread_vrml_geometry_is_a_warning_naming_it(tmp_path):
     with pytest.warns(InputWarning, match=r"x\.wrl:3: Extrusion geometry is not read") as seen:
         parts = load_model(path)
     assert len(parts) == 1 and len([w for w in seen if "Extrusion" in str(w.message)]) == 1
+
+
+def test_absurdly_large_coordinates_do_not_overflow_the_zero_area_check(tmp_path):
+    path = tmp_path / "huge.wrl"  # found by tests/io/test_fuzz.py: an OverflowError in the check
+    box = "Shape { geometry Box {} }"
+    path.write_text(f"#VRML V2.0 utf8\nTransform {{ scale 1e200 1e200 1e200 children {box} }}\n")
+    assert len(load_model(path)) == 1
