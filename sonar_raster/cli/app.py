@@ -17,6 +17,7 @@ import signal
 import sys
 import threading
 import warnings
+from collections.abc import Callable
 from typing import Any
 
 from ..errors import InputWarning, SonarRasterError
@@ -83,6 +84,10 @@ def _on_sigterm(signum: int, frame: object) -> None:
     raise _Terminated
 
 
+#: Seconds before an interrupt swallowed by a finalizer is sent again (the hook returns first).
+REDELIVER_S = 0.01
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status.
 
@@ -93,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
     """
     args = _parser().parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="sonar-raster: %(message)s")
-    previous = _install_sigterm()
+    restore = _install_signals()
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("error")
@@ -120,8 +125,7 @@ def main(argv: list[str] | None = None) -> int:
         print("sonar-raster: interrupted; nothing was written", file=sys.stderr)
         return 130
     finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
+        restore()
 
 
 def _show_warning(fallback: Any) -> Any:
@@ -142,11 +146,36 @@ def _show_warning(fallback: Any) -> Any:
     return show
 
 
-def _install_sigterm() -> Any:
-    """Make SIGTERM raise like SIGINT; return the previous handler (None off the main thread)."""
+def _install_signals() -> Callable[[], None]:
+    """Make SIGTERM raise like SIGINT, and a swallowed interrupt come back; return the undo.
+
+    Python runs a signal's handler in the main thread at the next instruction, which may be
+    inside a finalizer (``__del__``, a generator closed by the garbage collector); an exception
+    raised there is printed as "Exception ignored" with a traceback, and the command runs on
+    as if never stopped. The unraisable hook keeps that quiet and sends the signal again, so
+    it lands where it can stop the command. Off the main thread nothing is installed.
+    """
     if threading.current_thread() is not threading.main_thread():
-        return None
-    return signal.signal(signal.SIGTERM, _on_sigterm)
+        return lambda: None
+    previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    previous_hook = sys.unraisablehook
+
+    def hook(unraisable: Any) -> None:
+        exc = unraisable.exc_value
+        if not isinstance(exc, KeyboardInterrupt):
+            previous_hook(unraisable)
+            return
+        again = signal.SIGTERM if isinstance(exc, _Terminated) else signal.SIGINT
+        # from another thread: raised here, in the hook, it would be swallowed once more
+        threading.Timer(REDELIVER_S, signal.raise_signal, (again,)).start()
+
+    sys.unraisablehook = hook
+
+    def restore() -> None:
+        signal.signal(signal.SIGTERM, previous)
+        sys.unraisablehook = previous_hook
+
+    return restore
 
 
 if __name__ == "__main__":

@@ -337,6 +337,37 @@ ground_range = { uniform = [0.3, 0.9] }
 """
 
 
+_FINALIZER_SCRIPT = """
+import os, signal, sys, threading, time
+from sonar_raster.cli.app import _install_signals
+restore = _install_signals()
+class Slow:
+    def __del__(self):
+        time.sleep(0.5)  # the signal arrives here: its exception cannot leave a finalizer
+threading.Timer(0.1, os.kill, (os.getpid(), int(sys.argv[1]))).start()
+try:
+    slow = Slow()
+    del slow
+    time.sleep(5)
+    print("ran on")
+except KeyboardInterrupt as exc:
+    print("stopped", type(exc).__name__)
+restore()
+"""
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_a_signal_landing_in_a_finalizer_still_stops_the_command_quietly(sig):
+    """The dataset flake of 2026-11-27: SIGTERM inside a ``__del__`` printed a traceback."""
+    proc = subprocess.run(
+        [sys.executable, "-c", _FINALIZER_SCRIPT, str(int(sig))],
+        capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    name = "_Terminated" if sig == signal.SIGTERM else "KeyboardInterrupt"
+    assert proc.stdout.strip() == f"stopped {name}"
+    assert proc.stderr == ""
+
+
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL])
 def test_a_killed_two_worker_dataset_leaves_no_processes(tmp_path, sig):
     pytest.importorskip("psutil")
