@@ -15,7 +15,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
+from scipy import ndimage, sparse
 
 from ..model import adjoint, forward
 from .layout import View, bspline_basis, knot_centres
@@ -112,6 +112,7 @@ class Problem:
         self.flat = flat
         ky, kx = (len(k) for k in grid.knots("z"))
         self.kz = (ky, kx)
+        self._line_operators: list[tuple] | None = None
         self.objects = np.zeros(self.kz)
         self.shadowed = np.zeros(self.kz)
         ry, rx = (len(k) for k in grid.knots("r"))
@@ -139,6 +140,48 @@ class Problem:
         #: crests, as far as the data confirm them: ``solve._track_model``; 0 until measured),
         #: taken off the tracked altitude by the anchor.
         self.anchor_offset: dict[int, float] = dict.fromkeys(self.anchored, 0.0)
+
+    @property
+    def objects(self) -> np.ndarray:
+        """The knots of objects found by their shadows (see the class's attributes)."""
+        return self._objects
+
+    @objects.setter
+    def objects(self, value: np.ndarray) -> None:
+        self._objects = value
+        self._line_operators = None  # the line profile's average leaves the objects out
+
+    def line_operators(self) -> list[tuple[sparse.csr_matrix, np.ndarray, float, float]]:
+        """Per view, what :func:`line_profile` needs, made once per set of objects.
+
+        ``(A, n, σ, w)``: ``A`` (cells × knots) the line's average over its pings of each
+        cell's Z, the objects' cells left out (so the average of the deviation is ``A dev``,
+        one small product instead of one the size of the image); ``n`` the pings' mean nadir
+        row; ``σ`` the low-pass in cells; ``w`` the weight.
+        """
+        if self._line_operators is None:
+            keep_all = self.objects.ravel()
+            spacing = self.grid.z_spacing
+            ops = []
+            for view in self.views:
+                pings, cells = view.shape
+                if keep_all.any():
+                    inside = np.asarray(view.bz @ keep_all).reshape(pings, cells)
+                    keep = 1.0 - np.clip(inside, 0.0, 1.0)
+                else:
+                    keep = np.ones((pings, cells))
+                count = np.maximum(keep.sum(axis=0), 1e-9)
+                # row c of the sum over pings: column c of every ping, weighted by keep / count
+                total = sparse.kron(np.ones((1, pings)), sparse.identity(cells), format="csr")
+                weights = sparse.diags((keep / count[None, :]).ravel())
+                average = (total @ weights @ view.bz).tocsr()
+                nadir = np.asarray(view.nadir.sum(axis=0)).ravel() / pings
+                sigma = LINE_PROFILE_SCALE * float(np.nanmedian(view.altitude)) / view.geom.dx
+                # per knot along the line and across it, as in data units elsewhere
+                w = self.w_line * (pings * view.geom.dy / spacing) * (view.geom.dx / spacing)
+                ops.append((average, nadir, sigma, w))
+            self._line_operators = ops
+        return self._line_operators
 
     def relief_weights(self) -> np.ndarray | None:
         """Per Z knot, the weight of ``(Z − flat)²`` in the priors, (ky, kx); None if none.
@@ -411,26 +454,38 @@ def line_profile(problem: Problem, dev: np.ndarray) -> tuple[float, np.ndarray]:
     Hessian times ``v``. Returns the value and the gradient (nz,).
     """
     value, grad = 0.0, np.zeros(problem.nz)
-    spacing = problem.grid.z_spacing
+    for average, nadir, sigma, w in problem.line_operators():
+        m = np.asarray(average @ dev) - float(nadir @ dev)
+        low = ndimage.gaussian_filter1d(m, sigma, mode="constant")
+        value += w * float(np.sum(low * low))
+        g_m = ndimage.gaussian_filter1d(2.0 * w * low, sigma, mode="constant")
+        grad += average.T @ g_m
+        grad -= nadir * float(np.sum(g_m))
+    return value, grad
+
+
+def line_profile_reference(problem: Problem, dev: np.ndarray) -> tuple[float, np.ndarray]:
+    """:func:`line_profile` from its definition: each view's Z deviation, ping by ping.
+
+    The same numbers (to rounding) at the cost of three products the size of the image per
+    view and call; kept as the fit's check (tests) and its speed baseline
+    (``tools/bench_surface_solver.py``).
+    """
+    value, grad = 0.0, np.zeros(problem.nz)
     objects = problem.objects.ravel()
+    spacing = problem.grid.z_spacing
     for view in problem.views:
         pings, cells = view.shape
         d = np.asarray(view.bz @ dev).reshape(pings, cells)
-        at = np.asarray(view.nadir @ dev)
-        if objects.any():
-            keep = 1.0 - np.clip(np.asarray(view.bz @ objects).reshape(pings, cells), 0.0, 1.0)
-        else:
-            keep = np.ones((pings, cells))
+        keep = 1.0 - np.clip(np.asarray(view.bz @ objects).reshape(pings, cells), 0.0, 1.0)
         count = np.maximum(keep.sum(axis=0), 1e-9)
-        m = (keep * d).sum(axis=0) / count - float(at.mean())
+        m = (keep * d).sum(axis=0) / count - float(np.mean(view.nadir @ dev))
         sigma = LINE_PROFILE_SCALE * float(np.nanmedian(view.altitude)) / view.geom.dx
         low = ndimage.gaussian_filter1d(m, sigma, mode="constant")
-        # per knot along the line and across it, as in data units elsewhere
         w = problem.w_line * (pings * view.geom.dy / spacing) * (view.geom.dx / spacing)
         value += w * float(np.sum(low * low))
         g_m = ndimage.gaussian_filter1d(2.0 * w * low, sigma, mode="constant")
-        g_d = keep * (g_m / count)[None, :]
-        grad += view.bz.T @ g_d.ravel()
+        grad += view.bz.T @ (keep * (g_m / count)[None, :]).ravel()
         grad -= view.nadir.T @ np.full(pings, float(np.sum(g_m)) / pings)
     return value, grad
 

@@ -91,6 +91,20 @@ SYMMETRIC_LU = {
     "diag_pivot_thresh": 0.0,
     "options": {"SymmetricMode": True},
 }
+#: Z knots above which the Gauss-Newton steps are preconditioned by algebraic multigrid
+#: (pyamg's smoothed aggregation) instead of the complete LU factors, whose fill grows faster
+#: than the knots (28.7 k knots: 1.8e7 entries, 1.3 s; 84 k: 6.7e7, 5.6 s). The bench's
+#: 200-ping fit 1.23x and its 600-ping one 1.51x faster, scores within their noise
+#: (tools/bench_surface_solver.py; docs/notes/2026-11-27-solver-scaling.md).
+AMG_KNOTS = 20_000
+#: Smoothed aggregation settings: energy-minimising prolongation, two symmetric Gauss-Seidel
+#: sweeps before and after (symmetric, so the V-cycle is a valid conjugate-gradient
+#: preconditioner).
+AMG = {
+    "smooth": "energy",
+    "presmoother": ("gauss_seidel", {"sweep": "symmetric", "iterations": 2}),
+    "postsmoother": ("gauss_seidel", {"sweep": "symmetric", "iterations": 2}),
+}
 #: Draws of the Laplace approximation behind each cell's Z std (32 estimate a std to ~12 %).
 LAPLACE_SAMPLES = 32
 #: Incomplete LU of the uncertainty's diagonal blocks (Z, log R) as its preconditioner: on the
@@ -887,6 +901,22 @@ def _track_model(problem: Problem, p: np.ndarray) -> None:
         problem.anchor_offset[line] = trust * gap
 
 
+def _preconditioner(lhs: sparse.csc_matrix) -> Callable[[np.ndarray], np.ndarray]:
+    """``v -> M⁻¹ v`` for the symmetric positive definite Gauss-Newton matrix ``lhs``.
+
+    Its complete sparse LU up to :data:`AMG_KNOTS` unknowns, one V-cycle of smoothed
+    aggregation multigrid beyond (linear in the knots, in time and memory).
+    """
+    from scipy.sparse.linalg import splu
+
+    if lhs.shape[0] <= AMG_KNOTS:
+        return splu(lhs, **SYMMETRIC_LU).solve
+    import pyamg
+
+    hierarchy = pyamg.smoothed_aggregation_solver(lhs.tocsr(), **AMG)
+    return hierarchy.aspreconditioner(cycle="V").matvec
+
+
 def _gn_matvec(problem: Problem, lhs: sparse.csc_matrix, v: np.ndarray) -> np.ndarray:
     out = np.asarray(lhs @ v)
     if problem.w_line > 0:
@@ -903,11 +933,12 @@ def _gauss_newton(
     """Alternate Gauss-Newton steps on the Z knots with L-BFGS on R and Φ.
 
     Each Z step solves ``(H + H_line + μ D) δ = −g`` by conjugate gradients preconditioned with
-    the sparse LU factors of ``H + μ D`` (D its diagonal; μ shrinks after a good step and grows
-    after a bad one), then backtracks on the full objective, which never rises within a step
+    the sparse LU factors of ``H + μ D``, or a multigrid V-cycle on it beyond ``AMG_KNOTS``
+    knots (D its diagonal; μ shrinks after a good step and grows after a bad one), then
+    backtracks on the full objective, which never rises within a step
     (with ``CREST_OFFSET`` the anchor's crest offset is measured anew before each step).
     """
-    from scipy.sparse.linalg import LinearOperator, cg, splu
+    from scipy.sparse.linalg import LinearOperator, cg
 
     nz = problem.nz
     free = np.zeros(problem.size, bool)
@@ -920,9 +951,8 @@ def _gauss_newton(
         h = _fisher_z(problem, p)
         diag = h.diagonal()
         lhs = (h + sparse.diags(damping * diag + 1e-12 * diag.mean())).tocsc()
-        lu = splu(lhs, **SYMMETRIC_LU)
         op = LinearOperator((nz, nz), matvec=partial(_gn_matvec, problem, lhs))
-        pre = LinearOperator((nz, nz), matvec=lu.solve)
+        pre = LinearOperator((nz, nz), matvec=_preconditioner(lhs))
         step, _ = cg(op, -grad[:nz], M=pre, maxiter=30)
         accepted = False
         for t in (1.0, 0.5, 0.25, 0.125):
