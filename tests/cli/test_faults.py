@@ -358,7 +358,8 @@ restore()
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
 def test_a_signal_landing_in_a_finalizer_still_stops_the_command_quietly(sig):
-    """The dataset flake of 2026-11-27: SIGTERM inside a ``__del__`` printed a traceback."""
+    """A SIGTERM or Ctrl-C inside a ``__del__`` printed a traceback and the command ran on (the
+    likely cause of the dataset kill test's one CI failure, 2026-11-27)."""
     proc = subprocess.run(
         [sys.executable, "-c", _FINALIZER_SCRIPT, str(int(sig))],
         capture_output=True, text=True, timeout=60,
