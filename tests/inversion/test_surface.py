@@ -298,8 +298,12 @@ def test_multigrid_preconditions_the_gauss_newton_matrix(monkeypatch):
     b = rng.normal(size=problem.nz)
     exact = spsolve(lhs, b)
     monkeypatch.setattr(solve, "AMG_KNOTS", 0)
+    multigrid = solve._preconditioner(lhs)
+    u, v = rng.normal(size=(2, problem.nz))
+    assert u @ multigrid(v) == pytest.approx(v @ multigrid(u), rel=1e-8)  # symmetric
+    assert u @ multigrid(u) > 0  # and positive
     counts = {}
-    for name, apply in (("multigrid", solve._preconditioner(lhs)), ("diagonal", None)):
+    for name, apply in (("multigrid", multigrid), ("diagonal", None)):
         apply = apply or (lambda v: v / lhs.diagonal())
         steps = []
         x, info = cg(
@@ -314,7 +318,9 @@ def test_multigrid_preconditions_the_gauss_newton_matrix(monkeypatch):
 
 def test_a_flat_seabed_comes_out_level_with_the_multigrid_steps(monkeypatch):
     """The whole fit with every Gauss-Newton step on the multigrid path: as level as with the
-    LU (the quarter-bin case's bounds of the test above)."""
+    LU (the quarter-bin case's bounds of the test above). It guards the path end to end; the
+    preconditioner's quality is the test above's (backtracking and L-BFGS would carry the fit
+    even with none)."""
     monkeypatch.setattr(solve, "AMG_KNOTS", 0)
     sides = _flat_render(6.0125)
     fit = surface.fit_surface(sides, 0.05, ping_spacing=0.1, uncertainty=False)
