@@ -455,13 +455,11 @@ def _check_image_size(path: Path, force: bool = False) -> int | None:
         except (OSError, ValueError):
             return None  # read_side names what is wrong with the file
     elif path.is_file():
-        import OpenImageIO as oiio
+        from ..io.images import read_spec
 
-        inp = oiio.ImageInput.open(str(path))
-        if inp is None:
+        spec = read_spec(path)
+        if spec is None:
             return None
-        spec = inp.spec()
-        inp.close()
         shape = (spec.height, spec.width)
     if shape is None:
         return None

@@ -68,17 +68,11 @@ def read_side(path: Path, side: str | None) -> tuple[np.ndarray, str, dict]:
 
 def exr_sides(path: Path) -> list[str]:
     """The sides ("port", "starboard") an EXR holds as the renderer writes them; [] otherwise."""
-    import OpenImageIO as oiio
-
+    from ..io.images import read_spec
     from ..sonar import SIDES
 
-    if path.suffix.lower() != ".exr":
-        return []
-    inp = oiio.ImageInput.open(str(path))
-    if inp is None:
-        return []
-    names = list(inp.spec().channelnames)
-    inp.close()
+    spec = read_spec(path) if path.suffix.lower() == ".exr" else None
+    names = list(spec.channelnames) if spec is not None else []
     return names if names and all(n in SIDES for n in names) else []
 
 

@@ -449,6 +449,22 @@ def _display(
     return codes, mapping
 
 
+def read_spec(path: str | os.PathLike) -> oiio.ImageSpec | None:
+    """The header of any image OpenImageIO reads, without its pixels; None if it cannot open it.
+
+    OpenImageIO's own error is taken (not left pending to be printed at exit): the caller's
+    reader of the pixels says what is wrong with the file.
+    """
+    inp = oiio.ImageInput.open(str(path))
+    if inp is None:
+        oiio.geterror()
+        return None
+    try:
+        return inp.spec()
+    finally:
+        inp.close()
+
+
 def read_pixels(path: str | os.PathLike) -> tuple[np.ndarray, oiio.ImageSpec]:
     """Pixels of any image OpenImageIO reads, as float32 (height, width, channels), and its spec.
 

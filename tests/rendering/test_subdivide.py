@@ -88,3 +88,20 @@ def test_relief_too_steep_to_cut_up_is_one_line_before_any_work(gl):
     traj = Trajectory.straight((0.0, 0.0, 4.0), 0.0, 0.2, 4)
     with pytest.raises(SonarRasterError, match=r"would be cut into over [\d,]+ pieces of at most"):
         gl.render(scene, sonar, traj)
+
+
+def test_uniform_and_clipped_cuts_share_one_piece_budget(gl, monkeypatch):
+    """A scene whose small triangles (cut uniformly: 3 698 pieces) and huge one (cut within the
+    track's reach: 1 680) each fit the budget, but not together, is refused."""
+    from sonar_raster.errors import SonarRasterError
+    from sonar_raster.rendering.gl import raster
+
+    monkeypatch.setattr(raster, "MAX_PIECES", 4000)
+    sonar = Sonar(max_range=12.0, range_bin=0.1, tilt=0.0)
+    traj = Trajectory.straight((0.0, 0.0, 4.0), 0.0, 0.2, 10)
+    small = rect_seabed(-30.0, 30.0, -30.0, 30.0, 0.0, 0.5)
+    huge = rect_seabed(-3000.0, 3000.0, -3000.0, 3000.0, -1.0, 0.5)
+    for parts in ([small], [huge]):
+        gl.render(build_scene(parts), sonar, traj)
+    with pytest.raises(SonarRasterError, match=r"would be cut into over [\d,]+ pieces"):
+        gl.render(build_scene([small, huge]), sonar, traj)

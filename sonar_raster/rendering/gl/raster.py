@@ -38,14 +38,13 @@ log = logging.getLogger(__name__)
 MAX_PIECES = 1 << 24
 
 
-def _check_pieces(pieces: int, max_edge: float) -> None:
-    """One line when subdivision would add more than :data:`MAX_PIECES` triangles."""
-    if pieces > MAX_PIECES:
-        raise SonarRasterError(
-            f"the scene's triangles would be cut into over {pieces:,} pieces of at most "
-            f"{max_edge:g} m: relief far too steep or a model far too large (check its units, "
-            "amplitude or scale), or use a coarser --range-bin"
-        )
+def _too_many(pieces: int, max_edge: float) -> SonarRasterError:
+    """The one-line error for subdivision adding more than :data:`MAX_PIECES` triangles."""
+    return SonarRasterError(
+        f"the scene's triangles would be cut into over {pieces:,} pieces of at most "
+        f"{max_edge:g} m: relief far too steep or a model far too large (check its units, "
+        "amplitude or scale), or use a coarser --range-bin"
+    )
 
 
 #: Pieces per edge beyond which only the pieces of a triangle that the track can see are
@@ -323,14 +322,17 @@ class RasterRenderer:
         big = counts > 1
         if big.any():
             huge = (counts[big] > CLIP_COUNT) & (box is not None)
-            _check_pieces(int(np.sum(counts[big][~huge] ** 2)), max_edge)
+            uniform = int(np.sum(counts[big][~huge] ** 2))
+            if uniform > MAX_PIECES:
+                raise _too_many(uniform, max_edge)
             corners = vertices[faces[big]].astype(np.float64)
             if huge.any() and box is not None:  # only what the track can see is cut up
-                try:
-                    near, within = subdivide_within(corners[huge], max_edge, box, MAX_PIECES)
+                try:  # one budget for both kinds of cuts
+                    near, within = subdivide_within(
+                        corners[huge], max_edge, box, MAX_PIECES - uniform
+                    )
                 except TooManyPieces as stop:
-                    _check_pieces(int(stop.args[0]), max_edge)
-                    raise
+                    raise _too_many(uniform + int(stop.args[0]), max_edge) from None
                 rest, whole = subdivide(corners[~huge], counts[big][~huge])
                 pieces = np.concatenate([rest, near])
                 parent = np.concatenate(
