@@ -894,7 +894,9 @@ def _track_model(problem: Problem, p: np.ndarray) -> None:
             continue
         # the first returns' heights in the common datum: the sonar's own heave drops out
         a, b = (height - seen)[ok], (height - altitude)[ok]
-        a, b = a - a.mean(), b - b.mean()
+        # a centred is enough for the slope; b less its median stays exactly zero where the
+        # data's heights are all equal (less its mean, rounding left 1e-28 of trust)
+        a, b = a - a.mean(), b - np.median(b)
         norm = float(np.sum(a * a))
         trust = min(max(float(np.sum(a * b)) / norm, 0.0), 1.0) if norm > 0 else 0.0
         gap = float(np.median((seen - depth)[ok]))
