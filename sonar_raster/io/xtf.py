@@ -7,7 +7,9 @@ Reading streams the file packet by packet (:class:`XtfReader`, one :class:`XtfPi
 Conventions (checked on the OpenSidescan sample and by the round-trip tests):
 
 - The side of a channel is ``TypeOfChannel`` of its ``ChanInfo`` entry (1 port, 2 starboard);
-  the first port and the first starboard channel are read, other channels are skipped.
+  the first port and the first starboard channel are read, other channels are skipped. A side
+  the header's ``NumberOfSonarChannels`` leaves out is read from an entry past the count that
+  describes it (with a sample size), with a warning.
 - Port samples are stored from far range to nadir, starboard samples from nadir outward (as
   pyxtf's ``concatenate_channel`` assumes); :class:`SonarImage` sides run from range 0 outward.
 - Sample spacing is ``SlantRange / NumSamples`` (or ``TimeDuration · c / 2 / NumSamples`` when
@@ -16,7 +18,9 @@ Conventions (checked on the OpenSidescan sample and by the round-trip tests):
   field is doubled when twice it matches ``2 · SlantRange / TimeDuration`` better than the field
   itself, or, without timing, when it is below 1000 m/s. :func:`write_xtf` writes the half.
 - Navigation is ``SensorXcoordinate`` / ``SensorYcoordinate``: longitude / latitude in degrees
-  when the file header's ``NavUnits`` is 3, else projected metres (easting, northing). A ping
+  when the file header's ``NavUnits`` is 3, else projected metres (easting, northing), unless
+  the fixes contradict the header (none a place on Earth in degrees; or longitudes and
+  latitudes that stand still as metres), then the other, with a warning. A ping
   whose coordinates are both 0 has no navigation. Heading is the compass heading in degrees;
   roll is positive starboard down; the altitude is ``SensorPrimaryAltitude`` (0 = not known);
   the sensor depth is ``SensorDepth`` (positive down), so the sensor's z is ``-depth``.
@@ -417,7 +421,10 @@ class XtfReader:
         if len(raw) < head:
             raise _BadPacket("packet", f"{len(raw)} bytes, less than a ping header ({head})")
         ping = pyxtf.XTFPingHeader.from_buffer_copy(raw)
-        info = self.header.sonar_info  # channel k of a packet is described by sonar_info[k]
+        # channel k of a packet is described by sonar_info[k]; past the header's count (a
+        # side found beyond it, _side_channels) by ChanInfo[k]
+        info = list(self.header.sonar_info)
+        info += self.header.ChanInfo[len(info) : max(self.channels.values()) + 1]
         wanted = set(self.channels.values())
         channels: list[tuple[Any, np.ndarray]] = []
         pos = head
@@ -466,14 +473,28 @@ def _file_size(path: Path) -> int:
 
 
 def _side_channels(header: Any, path: Path) -> dict[str, int]:
-    """Side name to ChanInfo index: the first port and the first starboard channel."""
+    """Side name to ChanInfo index: the first port and the first starboard channel.
+
+    A side missing from the channels the header counts is taken from the ChanInfo entries past
+    the count (of the first file header's 6) when one describes it with a sample size, so a
+    count of 1 in a two-sided file does not drop starboard; a warning says so.
+    """
     out: dict[str, int] = {}
     n = min(int(header.NumberOfSonarChannels), 6)
-    for k in range(n):
-        kind = int(header.ChanInfo[k].TypeOfChannel)
-        side = {_PORT: "port", _STARBOARD: "starboard"}.get(kind)
-        if side and side not in out:
-            out[side] = k
+    for k in range(6):
+        info = header.ChanInfo[k]
+        side = {_PORT: "port", _STARBOARD: "starboard"}.get(int(info.TypeOfChannel))
+        if side is None or side in out:
+            continue
+        if k >= n:
+            if int(info.BytesPerSample) not in _SIZE_DTYPES:
+                continue
+            log.warning(
+                "%s: the header counts %d sonar channel(s) but ChanInfo %d describes the %s "
+                "side: reading it too",
+                path, n, k, side,
+            )  # fmt: skip
+        out[side] = k
     if not out:
         raise SonarRasterError(f"{path} has no port or starboard side-scan channel")
     return dict(sorted(out.items()))
@@ -843,7 +864,7 @@ def read_xtf(
         sides=tuple(sides),
         sound_speed=float(np.median([p.sound_speed for p in rows])),
     )
-    nav = _navigation(rows, units)
+    nav = _navigation(rows, units, Path(path))
     rejected = {rows[k].index: why for k, why in nav.rejected.items()}
     blanked = (sum(p.blanked for p in rows), sum(p.blanked > 0 for p in rows))
     if skipped or rejected or blanked[0]:
@@ -980,11 +1001,12 @@ def _setting_change(rows: list[XtfPing], keys: list[Any], path: Path) -> str:
     )
 
 
-def _navigation(rows: list[XtfPing], units: str) -> XtfNavigation:
+def _navigation(rows: list[XtfPing], units: str, path: Path) -> XtfNavigation:
     def col(name: str) -> np.ndarray:
         return np.array([getattr(p, name) for p in rows], dtype=np.float64)
 
     x, y, heading, time = col("x"), col("y"), col("heading"), col("time")
+    units = _fix_units(x, y, time, units, path)
     rejected = _filter_navigation(x, y, heading, time, units)
     return XtfNavigation(
         time=time,
@@ -999,6 +1021,58 @@ def _navigation(rows: list[XtfPing], units: str) -> XtfNavigation:
         valid=np.isfinite(x) & np.isfinite(y),
         rejected=rejected,
     )
+
+
+#: Slowest mean speed of a moving vehicle, m/s: a track in metres slower than this whose numbers
+#: are longitudes and latitudes that move at a vehicle's speed is in degrees.
+_STILL_SPEED = 0.05
+#: Fastest mean speed a survey vehicle has, m/s.
+_FAST_SPEED = 30.0
+
+
+def _fix_units(x: np.ndarray, y: np.ndarray, time: np.ndarray, units: str, path: Path) -> str:
+    """The units the fixes are in: the header's ``NavUnits``, unless the fixes contradict it.
+
+    Fixes marked as degrees of which none is a place on Earth in degrees (beyond ±180°, ±90°)
+    and all are in metres are projected metres; fixes marked as metres that all lie within
+    ±180, ±90, hardly move as metres (mean speed below :data:`_STILL_SPEED`) and move at a
+    vehicle's speed as degrees are longitudes and latitudes. Either way a warning says so.
+    """
+    has = np.isfinite(x) & np.isfinite(y)
+    if has.sum() < 3:
+        return units
+    other = "metres" if units == "degrees" else "degrees"
+    if units == "degrees":
+        wrong = bool(np.all(_out_of_range(x[has], y[has], units)))
+        wrong &= not np.any(_out_of_range(x[has], y[has], other))
+    else:
+        wrong = not np.any(_out_of_range(x[has], y[has], other))
+        speed = [_track_speed(x[has], y[has], time[has], u) for u in (units, other)]
+        wrong = wrong and speed[0] < _STILL_SPEED <= speed[1] <= _FAST_SPEED
+    if not wrong:
+        return units
+    log.warning(
+        "%s: the header marks positions as %s but they are %s (x %.6g to %.6g, y %.6g to %.6g): "
+        "read as %s",
+        path, units,
+        "no place on Earth in degrees" if units == "degrees" else "longitudes and latitudes "
+        "that stand still in metres", np.min(x[has]), np.max(x[has]), np.min(y[has]),
+        np.max(y[has]), other,
+    )  # fmt: skip
+    return other
+
+
+def _track_speed(x: np.ndarray, y: np.ndarray, time: np.ndarray, units: str) -> float:
+    """Path length over time span of fixes in time order, m/s; NaN without a time span.
+
+    A fix repeated between navigation updates adds nothing to the path.
+    """
+    order = np.argsort(time, kind="stable")
+    east, north = _local_metres(x[order], y[order], units)
+    span = float(time[order][-1] - time[order][0])
+    if not span > 0:
+        return math.nan
+    return float(np.sum(np.hypot(np.diff(east), np.diff(north)))) / span
 
 
 def _out_of_range(x: np.ndarray, y: np.ndarray, units: str) -> np.ndarray:

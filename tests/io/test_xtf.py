@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import ctypes
 import gc
+import logging
 import math
 from dataclasses import replace
 from pathlib import Path
@@ -194,6 +195,25 @@ def test_simulated_file_is_read_by_pyxtf_with_port_reversed(tmp_path, simulated)
     assert chan.SlantRange == pytest.approx(15.0) and chan.NumSamples == 300
     assert 2 * chan.SlantRange / chan.TimeDuration == pytest.approx(1500.0, rel=1e-6)
     assert ping.NumBytesThisRecord == len(ping.to_bytes())
+
+
+def test_projected_positions_marked_as_degrees_are_read_as_metres(tmp_path, simulated, caplog):
+    """UTM-sized eastings and northings in a file whose NavUnits says degrees are no place on
+    Earth in degrees: read as metres (as written), with one warning, not rejected as wild."""
+    image, track = simulated
+    path = write_xtf(tmp_path / "utm.xtf", image, track, origin=(500_000.0, 5_400_000.0))
+    _, nav = read_xtf(path)
+    data = bytearray(path.read_bytes())
+    data[pyxtf.XTFFileHeader.NavUnits.offset] = 3  # degrees
+    marked = tmp_path / "marked.xtf"
+    marked.write_bytes(bytes(data))
+    caplog.clear()
+    _, back = read_xtf(marked)
+    assert back.units == "metres" and back.valid.all() and not back.rejected
+    np.testing.assert_array_equal(back.x, nav.x)
+    np.testing.assert_array_equal(back.y, nav.y)
+    lines = [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
+    assert len(lines) == 1 and "no place on Earth in degrees" in lines[0], lines
 
 
 def test_write_rejects_bad_input_and_leaves_nothing(tmp_path, simulated):

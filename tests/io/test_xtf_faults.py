@@ -167,6 +167,53 @@ def test_a_damaged_frame_loses_one_ping_and_the_rest_is_read(tmp_path, caplog, c
         assert [s["index"] for s in image.metadata["skipped_pings"]] == [lost]
 
 
+def test_a_header_counting_one_channel_of_two_still_reads_both_sides(tmp_path, caplog, clean):
+    """NumberOfSonarChannels 1 in a file whose ChanInfo and packets hold port and starboard:
+    both sides are read as in the clean file (not starboard dropped), with one warning line
+    saying why."""
+    data = SAMPLE.read_bytes()
+    path = tmp_path / "one.xtf"
+    path.write_bytes(data[:166] + (1).to_bytes(2, "little") + data[168:])
+    image, _ = read_xtf(path)
+    assert sorted(image.sides) == ["port", "starboard"]
+    for side in ("port", "starboard"):
+        np.testing.assert_array_equal(image.sides[side], clean[0].sides[side])
+    lines = [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
+    assert len(lines) == 1 and "counts 1 sonar channel" in lines[0] and "starboard" in lines[0]
+
+
+def test_a_stale_chaninfo_entry_past_the_count_is_not_read(tmp_path, caplog, clean):
+    """A one-channel file whose ChanInfo 1 says starboard but holds no sample size (a blank
+    entry with a stale type): it is not read, so port comes out as in the clean file."""
+    data = bytearray(SAMPLE.read_bytes())
+    data[166:168] = (1).to_bytes(2, "little")
+    size = ctypes.sizeof(pyxtf.XTFChanInfo)
+    info = pyxtf.XTFFileHeader.ChanInfo.offset + size  # ChanInfo 1
+    data[info : info + size] = bytes(size)
+    put(data, info, pyxtf.XTFChanInfo, "TypeOfChannel", 2)
+    path = tmp_path / "port.xtf"
+    path.write_bytes(bytes(data))
+    image, _ = read_xtf(path)
+    assert list(image.sides) == ["port"]
+    np.testing.assert_array_equal(image.sides["port"], clean[0].sides["port"])
+
+
+def test_longitudes_and_latitudes_marked_as_metres_are_read_as_degrees(tmp_path, caplog, clean):
+    """The sample's fixes with NavUnits 0: as metres the vehicle would stand still (0.5 mm in
+    a minute), as degrees it moves at 1 m/s: read as degrees, with one warning."""
+    data = bytearray(SAMPLE.read_bytes())
+    data[pyxtf.XTFFileHeader.NavUnits.offset] = 0  # metres
+    path = tmp_path / "metres.xtf"
+    path.write_bytes(bytes(data))
+    _, nav = read_xtf(path)
+    clean_nav = clean[1]
+    assert clean_nav.units == "degrees" and nav.units == "degrees"
+    np.testing.assert_array_equal(nav.x, clean_nav.x)
+    assert nav.rejected == clean_nav.rejected
+    lines = [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
+    assert len(lines) == 1 and "longitudes and latitudes" in lines[0], lines
+
+
 def test_a_damaged_frame_in_a_copy_with_new_samples(tmp_path, clean):
     from sonar_raster.insert.xtf_patch import patch_xtf
 
