@@ -58,7 +58,7 @@ from typing import Any, BinaryIO
 import numpy as np
 
 from ..errors import SonarRasterError
-from ..image import SonarImage
+from ..image import NO_DATA_LEVEL, SonarImage
 from ..sonar import Sonar
 from ..trajectory import Trajectory
 
@@ -519,11 +519,12 @@ def _sample_spacing(chan: Any, samples: int, speed: float) -> float:
 
 
 def _scaled(data: np.ndarray, weight: int) -> tuple[np.ndarray, int]:
-    """Samples as float32 times ``2 ** -weight``, and how many non-finite ones were set to 0.
+    """Samples as float32 times ``2 ** -weight``, and how many no-data ones were set to 0.
 
-    A few NaN or infinite samples of a float channel (at most :data:`MAX_BLANKED` of them; a
-    processing program's "no data") become 0, no echo; more, or any from a weight that
-    overflows, make the packet a _BadPacket, as does a wild weight.
+    A few NaN, infinite or huge (:data:`..image.NO_DATA_LEVEL` or more) samples of a float
+    channel (at most :data:`MAX_BLANKED` of them; a processing program's "no data") become 0,
+    no echo; more, or any from a weight that overflows, make the packet a _BadPacket, as does a
+    wild weight.
     """
     if abs(weight) > MAX_WEIGHT:
         raise _BadPacket("Weight", f"Weight {weight}, beyond {MAX_WEIGHT} either way")
@@ -533,12 +534,15 @@ def _scaled(data: np.ndarray, weight: int) -> tuple[np.ndarray, int]:
             values *= np.float32(2.0**-weight)
     if data.dtype.kind != "f" and weight >= 0:
         return values, 0
-    bad = ~np.isfinite(values)
+    with np.errstate(invalid="ignore"):
+        bad = ~(np.abs(values) < NO_DATA_LEVEL)
     blanked = int(bad.sum())
     if blanked and (data.dtype.kind != "f" or blanked > MAX_BLANKED * len(values)):
-        raise _BadPacket("samples", f"{blanked} non-finite sample values of {len(values)}")
+        shown = f"{blanked} non-finite or no-data sample values of {len(values)}"
+        raise _BadPacket("samples", shown)
     if blanked:
-        bad &= ~np.isfinite(data)  # the file's own NaN/inf, not an overflow of the weight
+        with np.errstate(invalid="ignore"):  # the file's own, not an overflow of the weight
+            bad &= ~(np.abs(data) < NO_DATA_LEVEL)
         if int(bad.sum()) != blanked:
             raise _BadPacket("samples", "non-finite sample values")
         values[bad] = 0.0
@@ -637,7 +641,7 @@ def skip_summary(
         parts.append(f"interpolated the navigation of {n} {'ping' if n == 1 else 'pings'} ({why})")
     if blanked[0]:
         parts.append(
-            f"set {blanked[0]} non-finite samples to 0 (no echo) in {blanked[1]} "
+            f"set {blanked[0]} non-finite or no-data samples to 0 (no echo) in {blanked[1]} "
             f"{'ping' if blanked[1] == 1 else 'pings'}"
         )
     return "; ".join(parts)

@@ -461,8 +461,9 @@ def test_a_numeric_warning_inside_a_command_stops_it_with_one_line(capsys, monke
         (np.ones((16, 64), np.complex64), "give intensities, e.g. np.abs(a) ** 2"),
         (np.full((16, 64), "a"), "expected numbers, got dtype <U1"),
         (np.ones((1, 64), np.float32), ">= 2 ping(s)"),
+        (np.full((16, 64), 3e38, np.float32), "a no-data marker rather than an echo"),
     ],
-    ids=["complex", "strings", "one ping"],
+    ids=["complex", "strings", "one ping", "no-data values"],
 )
 @pytest.mark.parametrize("method", ["profiles", "surface"])
 def test_an_npy_the_inversion_cannot_take_is_the_one_error_line(tmp_path, values, message, method):

@@ -481,7 +481,11 @@ def test_invert_xtf_writes_every_product_or_none(tmp_path, monkeypatch, capsys):
     assert not out.exists()
 
 
-def test_a_few_nan_samples_of_a_float_file_become_zero_and_are_counted(tmp_path, simulated, caplog):
+@pytest.mark.parametrize("marker", [float("nan"), float(np.finfo(np.float32).max), -1e35])
+def test_a_few_no_data_samples_of_a_float_file_become_zero_and_are_counted(
+    tmp_path, simulated, caplog, marker
+):
+    """NaN or a huge no-data marker (float32's largest, as processing programs write it)."""
     import struct
 
     image, track = simulated
@@ -491,11 +495,11 @@ def test_a_few_nan_samples_of_a_float_file_become_zero_and_are_counted(tmp_path,
     path = write_xtf(tmp_path / "sim.xtf", replace(image, sides=marked), track)
     data = path.read_bytes()
     for value in (12345.678, 23456.789):
-        data = data.replace(struct.pack("<f", value), struct.pack("<f", float("nan")))
+        data = data.replace(struct.pack("<f", value), struct.pack("<f", marker))
     path.write_bytes(data)
     back, _ = read_xtf(path)
     assert back.metadata["ping_indices"] == [k for k in range(40) if k != 9]
     assert back.metadata["blanked_samples"] == 2
     assert back.sides["starboard"][5, 100] == 0.0 and back.sides["port"][7, 3] == 0.0
     assert np.all(np.isfinite(back.sides["starboard"]))
-    assert "set 2 non-finite samples to 0 (no echo) in 2 pings" in caplog.text
+    assert "set 2 non-finite or no-data samples to 0 (no echo) in 2 pings" in caplog.text
