@@ -24,9 +24,10 @@ import os
 import secrets
 import sys
 import time
-from collections.abc import Generator
+from collections.abc import Callable, Generator
 from contextlib import ExitStack, closing
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -266,6 +267,65 @@ def _json_bytes(doc: Any) -> bytes:
     return (json.dumps(doc, indent=1, allow_nan=False) + "\n").encode()
 
 
+#: Samples drawn (scene geometry, no render) before any output: when all of them fail the
+#: config is refused with the first one's reason instead of failing sample by sample.
+TRIAL_DRAWS = 3
+
+
+def _check_draws(config: DatasetConfig, seed: int, count: int) -> None:
+    """Refuse, in one line, a config none of whose first samples can be drawn.
+
+    That is a bad fixed value (``altitude = 0``, ``radius = 0``), which would otherwise fail
+    once per sample; a draw that fails only sometimes is left to its sample's record. Cost: one
+    draw when the first succeeds.
+    """
+    import numpy as np
+
+    from .scene import draw_sample
+
+    if config.background is not None:
+        return
+    name = config.name or "the dataset config"
+    rng = np.random.default_rng(seed)
+    for k, spec in enumerate(config.objects):  # whether or not the samples draw them
+        if spec.primitive is None:
+            continue
+        why = _all_fail(partial(_object_trial, spec, rng, config.base))
+        if why:
+            raise SonarRasterError(
+                f"{name}: object {k + 1} ({spec.label}) fails in all {TRIAL_DRAWS} draws "
+                f"({why}); check its fixed values"
+            )
+    trials = iter(range(min(TRIAL_DRAWS, count)))
+    why = _all_fail(lambda: draw_sample(config, seed, next(trials)), min(TRIAL_DRAWS, count))
+    if why:
+        raise SonarRasterError(
+            f"{name}: the first {min(TRIAL_DRAWS, count)} sample(s) all fail to draw ({why}); "
+            "check the config's fixed values"
+        )
+
+
+def _object_trial(spec: Any, rng: Any, base: Path) -> None:
+    """Draw an object entry's parameters and build its mesh (a bad value raises)."""
+    from .scene import draw_object_params, object_mesh_of
+
+    object_mesh_of(spec, draw_object_params(spec, rng), base)
+
+
+def _all_fail(attempt: Callable[[], object], tries: int = TRIAL_DRAWS) -> str | None:
+    """The first failure's reason when ``attempt`` fails every one of ``tries`` times, else None."""
+    first = None
+    for _ in range(tries):
+        try:
+            attempt()
+            return None
+        except SonarRasterError as exc:
+            first = first or str(exc)
+        except (ValueError, TypeError, ArithmeticError) as exc:  # a value of the wrong kind
+            first = first or f"{type(exc).__name__}: {exc}"
+    return first
+
+
 def _check_effects(config: DatasetConfig) -> None:
     if not config.effects:
         return
@@ -347,6 +407,7 @@ def generate_dataset(
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise SonarRasterError(f"workers must be a positive integer, got {workers!r}")
     _check_effects(config)
+    _check_draws(config, seed, count)
     summary = DatasetSummary(Path(out_dir), count)
     start = time.perf_counter()
     with ExitStack() as stack:

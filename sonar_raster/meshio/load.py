@@ -82,7 +82,10 @@ def _load_trimesh(path: Path) -> list[MeshPart]:
     if kind == "GLTF":
         _check_json(path)
     try:
-        scene = trimesh.load_scene(str(path))
+        # processed below (:func:`_finite`), which refuses non-finite vertices; trimesh's
+        # arithmetic on them (STL normals) is not the user's concern
+        with np.errstate(invalid="ignore", over="ignore"):
+            scene = trimesh.load_scene(str(path), process=False)
     except ImportError as exc:  # trimesh decodes non-UTF-8 text with an optional package
         raise SonarRasterError(
             f"cannot read '{path.name}' as {kind}: it is corrupt, or text that is not UTF-8; "
@@ -102,11 +105,12 @@ def _load_trimesh(path: Path) -> list[MeshPart]:
             log.debug("%s: skipping node %s without triangles", path.name, node)
             continue
         matrix = np.asarray(matrix, dtype=np.float64)
+        mesh = _finite(mesh, path, str(node))
         vertices = np.asarray(mesh.vertices, dtype=np.float64)
         if not (np.all(np.isfinite(vertices)) and np.all(np.isfinite(matrix))):
             raise SonarRasterError(
-                f"'{path.name}': node {node} has coordinates or a transform that are not "
-                "finite numbers (inf or NaN); fix the model file"
+                f"'{path.name}': node {node} has a transform that is not finite numbers (inf "
+                "or NaN); fix the model file"
             )
         vertices = vertices @ matrix[:3, :3].T + matrix[:3, 3]
         faces = np.array(mesh.faces, dtype=np.int64)
@@ -115,6 +119,23 @@ def _load_trimesh(path: Path) -> list[MeshPart]:
         reflectivity = _reflectivity(scene, node, mesh, path)
         parts.append(MeshPart(vertices, faces, reflectivity, str(node)))
     return parts
+
+
+def _finite(mesh: Any, path: Path, node: str) -> Any:
+    """``mesh`` processed as trimesh loads it by default (vertices merged).
+
+    A vertex that is not a finite number is a one-line error: trimesh would drop its faces
+    without a word.
+    """
+    bad = ~np.all(np.isfinite(mesh.vertices), axis=1)
+    if bad.any():
+        used = int(np.any(bad[mesh.faces], axis=1).sum())
+        raise SonarRasterError(
+            f"'{path.name}': node {node} has {int(bad.sum())} vertices that are not finite "
+            f"numbers (inf or NaN), used by {used} faces; fix the model file"
+        )
+    mesh.process()
+    return mesh
 
 
 def _check_json(path: Path) -> None:

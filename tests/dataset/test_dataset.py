@@ -558,6 +558,27 @@ def test_a_bad_effects_table_fails_before_any_output(tmp_path, table, message):
     assert not out.exists()
 
 
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (
+            ("altitude = { uniform = [3.0, 5.0] }", "altitude = 0.0"),
+            r"first 3 sample\(s\) all fail",
+        ),
+        (("radius = 0.25", "radius = 0.0"), r"object 1 \(cylinder\) fails in all 3 draws"),
+        (("max_range = { uniform = [10.0, 14.0] }", "max_range = [10, 14]"), "all fail to draw"),
+    ],
+    ids=["altitude 0", "radius 0 (drawn or not)", "a list for a number"],
+)
+def test_a_bad_fixed_value_fails_once_before_any_output(tmp_path, change, message):
+    """Not once per sample (each of thousands recorded as failed) but before the folder is made."""
+    config = _config(tmp_path, SMALL.replace(*change))
+    out = tmp_path / "out"
+    with pytest.raises(SonarRasterError, match=message):
+        generate_dataset(config, out, count=50)
+    assert not out.exists()
+
+
 def test_an_effects_curve_file_is_read_beside_the_config(tmp_path):
     from sonar_raster.dataset.sample import effects_of
 

@@ -248,12 +248,19 @@ def test_a_gltf_whose_buffer_is_short_is_one_line(tmp_path):
     assert "\n" not in str(info.value)
 
 
-def test_a_non_finite_vertex_is_one_line_naming_the_file(tmp_path):
+@pytest.mark.parametrize("suffix", [".glb", ".obj", ".ply", ".stl"])
+@pytest.mark.parametrize("value", [np.inf, np.nan])
+def test_a_non_finite_vertex_is_one_line_naming_the_file(tmp_path, suffix, value):
+    """In every format, not only where trimesh keeps it: OBJ and PLY lost a NaN vertex and its
+    faces without a word."""
     mesh = box()
-    mesh.vertices[0] = [np.inf, 0.0, 0.0]
-    mesh.export(tmp_path / "inf.glb")
-    with pytest.raises(SonarRasterError, match=r"'inf\.glb': node .* not finite"):
-        load_model(tmp_path / "inf.glb")
+    mesh.vertices[0] = [value, 0.0, 0.0]
+    path = tmp_path / f"bad{suffix}"
+    with np.errstate(invalid="ignore"):  # STL's normals of the bad faces
+        data = mesh.export(file_type=suffix[1:])
+    path.write_bytes(data if isinstance(data, bytes) else data.encode())
+    with pytest.raises(SonarRasterError, match=rf"'bad\{suffix}': node .* not finite"):
+        load_model(path)
 
 
 @pytest.mark.parametrize("name", ["box.wrz", "box.wrl.gz"])
