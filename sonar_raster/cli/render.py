@@ -439,6 +439,12 @@ def _check_outputs(outputs: list[str]) -> list[Path]:
     for p in paths:
         if p.suffix.lower() not in _OUTPUT_SUFFIXES:
             raise SonarRasterError(f"output {p}: unknown extension; use .png, .exr or .xtf")
+    seen: dict[Path, Path] = {}
+    for p in paths:
+        same = seen.setdefault(p.resolve(), p)
+        if same is not p:
+            also = "" if str(same) == str(p) else f" (also as {same})"
+            raise SonarRasterError(f"output {p} is given twice{also}; give it once")
     for p in paths:
         check_writable(p)
         if p.suffix.lower() != ".xtf":

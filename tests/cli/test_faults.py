@@ -515,6 +515,17 @@ def test_an_odd_scene_says_what_it_is(tmp_path, capsys, kind, message):
     assert not (tmp_path / "out.png").exists()
 
 
+@pytest.mark.parametrize("again", ["{out}", "{dir}/./out.png"], ids=["same", "same place"])
+def test_the_same_output_twice_is_one_line(tmp_path, capsys, again):
+    """``-o out.png -o out.png`` was written once without a word."""
+    (tmp_path / "s.toml").write_text(FLAT.format(pings=20))
+    out = tmp_path / "out.png"
+    second = again.format(out=out, dir=tmp_path)
+    assert main(["render", str(tmp_path / "s.toml"), "-o", str(out), "-o", second, "-q"]) == 2
+    assert "is given twice" in one_error_line(capsys.readouterr().err)
+    assert not out.exists()
+
+
 # -- inputs the TOML and option fuzzer found (2026-11-27) --------------------------------------
 @pytest.mark.parametrize(
     ("scene", "options", "message"),
