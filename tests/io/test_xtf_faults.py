@@ -199,8 +199,8 @@ def test_a_stale_chaninfo_entry_past_the_count_is_not_read(tmp_path, caplog, cle
 
 
 def test_longitudes_and_latitudes_marked_as_metres_are_read_as_degrees(tmp_path, caplog, clean):
-    """The sample's fixes with NavUnits 0: as metres the vehicle would stand still (0.5 mm in
-    a minute), as degrees it moves at 1 m/s: read as degrees, with one warning."""
+    """The sample's fixes with NavUnits 0: as metres the vehicle would stand still (1e-5 m/s),
+    as degrees it moves at 1 m/s: read as degrees, with one warning."""
     data = bytearray(SAMPLE.read_bytes())
     data[pyxtf.XTFFileHeader.NavUnits.offset] = 0  # metres
     path = tmp_path / "metres.xtf"
