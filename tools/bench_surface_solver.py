@@ -96,6 +96,17 @@ def _hierarchy_storage(hierarchy) -> int:
     return 12 * entries
 
 
+def _knots(tracks, images) -> int:
+    """Z knots of the full-resolution level, from its grid (without making its problem)."""
+    lines = [
+        bb.Line(s, bb.BIN, t.positions[:, :2], t.headings)
+        for t, s in zip(tracks, images, strict=True)
+    ]
+    _, _, grids = solve._setup(lines, "auto", None, None, 1)
+    ky, kx = (len(k) for k in grids[-1][1].knots("z"))
+    return ky * kx
+
+
 def run(field, tracks, images, baseline: bool) -> dict:
     meter = _Meter()
     with ExitStack() as stack:
@@ -133,8 +144,7 @@ def main() -> None:
     run(*warm, baseline=False)
     for pings in (int(p) for p in args.pings.split(",")):
         field, tracks, images = bb.render(args.seabed, pings, args.looks, 1)
-        knots = solve.problem_at([bb.Line(s, bb.BIN, t.positions[:, :2], t.headings)
-                                  for t, s in zip(tracks, images, strict=True)]).nz  # fmt: skip
+        knots = _knots(tracks, images)
         rows = {}
         for name in ("baseline", "new"):
             rows[name] = r = run(field, tracks, images, name == "baseline")
