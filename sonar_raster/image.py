@@ -9,8 +9,8 @@ import numpy as np
 from .sonar import Sonar
 
 #: Intensities at or above this are no-data markers (float32's largest, 3.4e38; 9.99e37), not
-#: echoes in any unit: the XTF reader blanks them like NaN, the inversion refuses them (its
-#: float32 products overflow near them).
+#: echoes in any unit: the XTF reader blanks them like NaN, ``sonar-raster invert`` refuses
+#: them (its float32 products overflow near them).
 NO_DATA_LEVEL = 1e30
 
 

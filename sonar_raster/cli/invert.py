@@ -327,7 +327,29 @@ def load_side(path: Path, side: str | None, range_bin: float | None) -> tuple[An
         raise SonarRasterError(
             f"{path.name} does not say its range bin (no sonar:range_bin_m); give --range-bin"
         )
+    _check_level(image, path)
     return image, side, float(range_bin)
+
+
+def _check_level(image: Any, path: Path) -> None:
+    """Refuse values at :data:`..image.NO_DATA_LEVEL` or above before the work.
+
+    The products are float32 files, which overflow near them once the fit is done (the Python
+    API keeps float64 and takes any level).
+    """
+    import numpy as np
+
+    from ..image import NO_DATA_LEVEL
+
+    a = np.asarray(image)
+    if not np.issubdtype(a.dtype, np.number) or np.iscomplexobj(a) or a.size == 0:
+        return  # the inversion's own checks say what is wrong
+    top = float(np.nanmax(a)) if not np.all(np.isnan(a)) else 0.0
+    if top >= NO_DATA_LEVEL:
+        raise SonarRasterError(
+            f"{path.name}: values reach {top:.3g}, a no-data marker rather than an echo (the "
+            "float32 products would overflow); set such samples to 0 or rescale the image"
+        )
 
 
 def _header_float(attrs: dict, name: str) -> float | None:

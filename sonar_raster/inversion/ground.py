@@ -14,7 +14,6 @@ import math
 import numpy as np
 
 from ..errors import SonarRasterError
-from ..image import NO_DATA_LEVEL
 
 
 def check_slant(slant: np.ndarray, range_bin: float, min_pings: int = 1) -> np.ndarray:
@@ -30,12 +29,6 @@ def check_slant(slant: np.ndarray, range_bin: float, min_pings: int = 1) -> np.n
         raise SonarRasterError("image must hold finite numbers")
     if np.any(a < 0):
         raise SonarRasterError("image intensities must be >= 0 (linear, not dB)")
-    top = float(np.max(a))
-    if top >= NO_DATA_LEVEL:
-        raise SonarRasterError(
-            f"image values reach {top:.3g}, a no-data marker rather than an echo; set such "
-            f"samples to 0 (and rescale the image if its echoes are near {NO_DATA_LEVEL:g})"
-        )
     if not (math.isfinite(range_bin) and range_bin > 0):
         raise SonarRasterError(f"range bin must be > 0 metres, got {range_bin!r}")
     return a.astype(np.float64)
