@@ -251,8 +251,8 @@ def test_a_gltf_whose_buffer_is_short_is_one_line(tmp_path):
 @pytest.mark.parametrize("suffix", [".glb", ".obj", ".ply", ".stl"])
 @pytest.mark.parametrize("value", [np.inf, np.nan])
 def test_a_non_finite_vertex_is_one_line_naming_the_file(tmp_path, suffix, value):
-    """In every format, not only where trimesh keeps it: OBJ and PLY lost a NaN vertex and its
-    faces without a word."""
+    """In every format, not only where trimesh keeps it: OBJ, PLY and STL lost such a vertex
+    and its faces without a word."""
     mesh = box()
     mesh.vertices[0] = [value, 0.0, 0.0]
     path = tmp_path / f"bad{suffix}"
