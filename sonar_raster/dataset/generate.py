@@ -293,15 +293,15 @@ def _check_draws(config: DatasetConfig, seed: int, count: int) -> None:
         why = _all_fail(partial(_object_trial, spec, rng, config.base))
         if why:
             raise SonarRasterError(
-                f"{name}: object {k + 1} ({spec.label}) fails in all {TRIAL_DRAWS} draws "
-                f"({why}); check its fixed values"
+                f"{name}: object {k + 1} ({spec.label}) fails in all {TRIAL_DRAWS} draws, so "
+                f"every sample that drew it would: {why}"
             )
     trials = iter(range(min(TRIAL_DRAWS, count)))
     why = _all_fail(lambda: draw_sample(config, seed, next(trials)), min(TRIAL_DRAWS, count))
     if why:
         raise SonarRasterError(
-            f"{name}: the first {min(TRIAL_DRAWS, count)} sample(s) all fail to draw ({why}); "
-            "check the config's fixed values"
+            f"{name}: the first {min(TRIAL_DRAWS, count)} sample(s) all fail to draw, so every "
+            f"sample would: {why}"
         )
 
 
