@@ -290,18 +290,17 @@ def _check_draws(config: DatasetConfig, seed: int, count: int) -> None:
     for k, spec in enumerate(config.objects):  # whether or not the samples draw them
         if spec.primitive is None:
             continue
-        why = _all_fail(partial(_object_trial, spec, rng, config.base))
+        why = _all_fail([partial(_object_trial, spec, rng, config.base)] * TRIAL_DRAWS)
         if why:
             raise SonarRasterError(
                 f"{name}: object {k + 1} ({spec.label}) fails in all {TRIAL_DRAWS} draws, so "
                 f"every sample that drew it would: {why}"
             )
-    trials = iter(range(min(TRIAL_DRAWS, count)))
-    why = _all_fail(lambda: draw_sample(config, seed, next(trials)), min(TRIAL_DRAWS, count))
+    first = min(TRIAL_DRAWS, count)
+    why = _all_fail([partial(draw_sample, config, seed, index) for index in range(first)])
     if why:
         raise SonarRasterError(
-            f"{name}: the first {min(TRIAL_DRAWS, count)} sample(s) all fail to draw, so every "
-            f"sample would: {why}"
+            f"{name}: the first {first} sample(s) all fail to draw, so every sample would: {why}"
         )
 
 
@@ -312,10 +311,10 @@ def _object_trial(spec: Any, rng: Any, base: Path) -> None:
     object_mesh_of(spec, draw_object_params(spec, rng), base)
 
 
-def _all_fail(attempt: Callable[[], object], tries: int = TRIAL_DRAWS) -> str | None:
-    """The first failure's reason when ``attempt`` fails every one of ``tries`` times, else None."""
+def _all_fail(attempts: list[Callable[[], object]]) -> str | None:
+    """The first failure's reason when every one of ``attempts`` fails, else None."""
     first = None
-    for _ in range(tries):
+    for attempt in attempts:
         try:
             attempt()
             return None

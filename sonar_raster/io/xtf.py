@@ -239,6 +239,10 @@ class XtfReader:
         try:
             self.header = self._read_header()
             self.channels = _side_channels(self.header, self.path)
+            # channel k of a packet is described by sonar_info[k]; past the header's count (a
+            # side found beyond it, _side_channels) by ChanInfo[k]
+            self._info = list(self.header.sonar_info)
+            self._info += self.header.ChanInfo[len(self._info) : max(self.channels.values()) + 1]
         except BaseException:
             self.close()
             raise
@@ -421,10 +425,7 @@ class XtfReader:
         if len(raw) < head:
             raise _BadPacket("packet", f"{len(raw)} bytes, less than a ping header ({head})")
         ping = pyxtf.XTFPingHeader.from_buffer_copy(raw)
-        # channel k of a packet is described by sonar_info[k]; past the header's count (a
-        # side found beyond it, _side_channels) by ChanInfo[k]
-        info = list(self.header.sonar_info)
-        info += self.header.ChanInfo[len(info) : max(self.channels.values()) + 1]
+        info = self._info
         wanted = set(self.channels.values())
         channels: list[tuple[Any, np.ndarray]] = []
         pos = head
