@@ -16,12 +16,17 @@ a rough plain (0.1 m rms, 1 m correlation) with two reflectivity patches (0.9 an
 boulders (20 half-spheres, 0.3–0.8 m across, on a flat seabed); a wreck-like box (6 × 2.5 m,
 1.5 m high) on a flat seabed.
 
+With ``--beam calibrated`` each seabed is also fitted in calibrated mode: each side's beam
+profile from a fit of a flat seabed (the same sonar and lines, its own speckle draw) is passed
+as ``fit_lines(beam=...)``; such rows are marked ``c`` (the flat fit is not timed).
+
 Usage: ``python tools/bench_bathymetry.py [--seabeds sand,mound,...] [--looks 0,1]
-[--pings 200] [--out bench_out]``.
+[--pings 200] [--beam free,calibrated] [--out bench_out]``.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 import zlib
@@ -32,6 +37,7 @@ from _common import DOCS, parser, pyplot
 from scipy import ndimage
 
 from sonar_raster.inversion.bottom import track_bottom
+from sonar_raster.inversion.solver import BeamProfile
 from sonar_raster.inversion.surface import Line, fit_lines
 from sonar_raster.rendering.gl.raster import RasterRenderer
 from sonar_raster.scene import build_scene
@@ -94,6 +100,7 @@ def _box(x, y, length):
 
 
 SEABEDS = {
+    "flat": (lambda x, y, length: np.zeros_like(x), None),  # calibrates the beam (--beam)
     "sand": (_sand, None),
     "mounds": (_mounds, None),
     "trenches": (_trenches, None),
@@ -160,20 +167,27 @@ def score(field, fits, baselines) -> tuple[float, float, float, float]:
     return rel, flat, float(np.corrcoef(f, t)[0, 1]), coverage
 
 
-def fit(tracks, images, joint: bool):
-    """The surface fit of every line together, or of each line alone."""
+def fit(tracks, images, joint: bool, beam=None):
+    """The surface fit of every line together, or of each line alone (``beam``: calibrated)."""
     lines = [
         Line(sides, BIN, t.positions[:, :2], t.headings)
         for t, sides in zip(tracks, images, strict=True)
     ]
     if joint:
-        return fit_lines(lines)
-    return [fit_lines([line])[0] for line in lines]
+        return fit_lines(lines, beam=beam)
+    return [fit_lines([line], beam=beam)[0] for line in lines]
+
+
+def calibrate(pings: int, looks: float, lines: int, overlap: float) -> dict[str, BeamProfile]:
+    """Each side's beam profile from a flat seabed's lines (their own speckle draw)."""
+    _, tracks, images = render("flat", pings, looks, lines, overlap)
+    first = fit(tracks, images, True)[0]
+    return {side: BeamProfile(*first.profile[side]) for side in first.profile}
 
 
 def main() -> None:
     cli = parser(__doc__, out=Path("bench_out"))
-    cli.add_argument("--seabeds", default=",".join(SEABEDS))
+    cli.add_argument("--seabeds", default=",".join(s for s in SEABEDS if s != "flat"))
     cli.add_argument("--looks", default="0,1", help="speckle looks per run (0: none)")
     cli.add_argument("--pings", type=int, default=200)
     cli.add_argument("--lines", default="1", help="line counts to run, e.g. 1,3")
@@ -182,7 +196,16 @@ def main() -> None:
     cli.add_argument(
         "--independent", action="store_true", help="with several lines, also fit each alone"
     )
+    cli.add_argument(
+        "--beam",
+        default="free",
+        help="free and/or calibrated (each side's profile from a flat seabed's fit, reused)",
+    )
     args = cli.parse_args()
+    modes_beam = args.beam.split(",")
+    if not set(modes_beam) <= {"free", "calibrated"}:
+        cli.error("--beam takes free and/or calibrated")
+    profiles: dict[tuple[float, int], dict[str, BeamProfile]] = {}
     rows = []
     print(
         f"{'seabed':9s} {'lines':>5s} {'looks':>5s} {'fit':>6s} {'flat':>6s} {'ratio':>6s} "
@@ -194,12 +217,19 @@ def main() -> None:
                 field, tracks, images = render(name, args.pings, looks, count, args.overlap)
                 baselines = [track_bottom(sides, BIN).altitude for sides in images]
                 modes = [True, False] if args.independent and count > 1 else [True]
-                for joint in modes:
+                for joint, mode in itertools.product(modes, modes_beam):
+                    beam = None
+                    if mode == "calibrated":
+                        key = (looks, count)
+                        if key not in profiles:
+                            profiles[key] = calibrate(args.pings, looks, count, args.overlap)
+                        beam = profiles[key]
                     start = time.perf_counter()
-                    fits = fit(tracks, images, joint)
+                    fits = fit(tracks, images, joint, beam)
                     seconds = time.perf_counter() - start
                     rel, flat, corr, coverage = score(field, fits, baselines)
                     label = f"{count}" + ("" if joint or count == 1 else "x1")
+                    label += "c" if beam else ""
                     rows.append((name, looks, rel, flat, seconds, label))
                     print(
                         f"{name:9s} {label:>5s} {looks:5g} {rel:6.3f} {flat:6.3f} "
@@ -208,7 +238,11 @@ def main() -> None:
                     )
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 3.2))
-    labels = [f"{n}\n{'speckle' if lk else 'clean'}\n{c} line(s)" for n, lk, *_, c in rows]
+    labels = [
+        f"{n}\n{'speckle' if lk else 'clean'}\n{c.rstrip('c')} line(s)"
+        + ("\ncal." if "c" in c else "")
+        for n, lk, *_, c in rows
+    ]
     pos = np.arange(len(rows))
     ax.bar(pos - 0.2, [r[3] for r in rows], 0.4, label="flat at the first return", color="0.7")
     ax.bar(pos + 0.2, [r[2] for r in rows], 0.4, label="surface fit", color="tab:blue")

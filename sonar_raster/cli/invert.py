@@ -126,8 +126,10 @@ def add_parser(sub: Any) -> None:
     )
     inv.add_argument(
         "--beam",
-        metavar="FILE",
-        help="calibrated mode: fix the beam profile from a beam_profile.json of an earlier run",
+        metavar="PATH",
+        help="calibrated mode: fix the beam profile from a beam_profile.json of an earlier run "
+        "(--method surface: its shape, for every side; or an earlier run's output folder, "
+        "one per side)",
     )
     inv.add_argument(
         "--flat-prior",
@@ -248,9 +250,8 @@ def _invert_surface(args: argparse.Namespace) -> int:
     from ..inversion.write import exr_sides, product_jobs
     from ..io.commit import commit
 
-    for name, value in (("--beam", args.beam), ("--flat-prior", args.flat_prior)):
-        if value:
-            raise SonarRasterError(f"{name} is not used by --method surface; leave it out")
+    if args.flat_prior:
+        raise SonarRasterError("--flat-prior is not used by --method surface; leave it out")
     path = Path(args.image)
     sides, range_bin = {}, args.range_bin
     image, got, range_bin = load_side(path, args.side, range_bin)
@@ -268,6 +269,7 @@ def _invert_surface(args: argparse.Namespace) -> int:
         altitude=altitude,
         looks="auto" if args.looks in ("auto", None) else args.looks,
         max_iter=args.max_iter,
+        beam=surface_beam(args.beam) if args.beam else None,
         progress=None if args.quiet else print,
     )
     out = Path(args.output)
@@ -612,10 +614,10 @@ def _invert_lines(args: argparse.Namespace) -> int:
 def _line_options(args: argparse.Namespace, beam_profile: Any) -> dict[str, Any]:
     """The inversion options of an XTF line (profiles: the solver's; surface: looks, max_iter)."""
     if args.method == "surface":
-        for name, value in (("--beam", args.beam), ("--flat-prior", args.flat_prior)):
-            if value:
-                raise SonarRasterError(f"{name} is not used by --method surface; leave it out")
-        return {"max_iter": args.max_iter, "looks": args.looks}
+        if args.flat_prior:
+            raise SonarRasterError("--flat-prior is not used by --method surface; leave it out")
+        beam = surface_beam(args.beam) if args.beam else None
+        return {"max_iter": args.max_iter, "looks": args.looks, "beam": beam}
     options: dict[str, Any] = {"max_iter": args.max_iter, "looks": args.looks}
     for name in ("levels", "tol", "flat_prior", "relief_std", "slope_std"):
         if getattr(args, name) is not None:
@@ -623,6 +625,34 @@ def _line_options(args: argparse.Namespace, beam_profile: Any) -> dict[str, Any]
     if args.beam:
         options["beam"] = beam_profile.load(args.beam)
     return options
+
+
+def surface_beam(path: str) -> Any:
+    """``--beam`` of the surface fit: one profile for every side, or one per side.
+
+    A file is a ``beam_profile.json``; a folder is an earlier ``invert`` run's output, whose
+    ``SIDE/beam_profile.json`` (``line_1/SIDE/`` for survey lines) or single
+    ``beam_profile.json`` is read.
+    """
+    from ..inversion.solver import BeamProfile
+
+    where = Path(path)
+    if not where.is_dir():
+        return BeamProfile.load(where)
+    found = {}
+    for side in ("port", "starboard"):
+        for folder in (where / side, where / "line_1" / side):
+            if (folder / "beam_profile.json").is_file():
+                found[side] = BeamProfile.load(folder / "beam_profile.json")
+                break
+    if found:
+        return found
+    if (where / "beam_profile.json").is_file():
+        return BeamProfile.load(where / "beam_profile.json")
+    raise SonarRasterError(
+        f"{where} holds no beam_profile.json (an invert output folder has one per side); "
+        "give that file or folder"
+    )
 
 
 def _line_jobs(args, out: Path, lines, results, gridded, datum: str) -> list:

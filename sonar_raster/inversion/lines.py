@@ -391,8 +391,8 @@ def invert_lines(
     progress : bool
         Progress bars (profiles) or per-step lines (surface).
     **options
-        ``"profiles"``: :func:`.solver.invert`'s options; ``"surface"``: ``looks`` and
-        ``max_iter`` (others are refused).
+        ``"profiles"``: :func:`.solver.invert`'s options; ``"surface"``: ``looks``,
+        ``max_iter`` and ``beam`` (a calibrated profile, one or per side; others are refused).
 
     Returns
     -------
@@ -426,14 +426,15 @@ def invert_lines(
 
 
 def surface_options(options: dict[str, Any]) -> dict[str, Any]:
-    """``looks`` and ``max_iter`` for :func:`.surface.invert_line`; other options refused."""
-    unused = sorted(set(options) - {"looks", "max_iter"})
+    """``looks``, ``max_iter`` and ``beam`` for :func:`.surface.invert_line`; others refused."""
+    unused = sorted(set(options) - {"looks", "max_iter", "beam"})
     if unused:
         raise SonarRasterError(f"{', '.join(unused)} not used by the surface fit; leave it out")
     looks = options.get("looks", "auto")
     return {
         "looks": "auto" if looks in ("auto", None) else looks,
         "max_iter": options.get("max_iter", 150),
+        "beam": options.get("beam"),
     }
 
 

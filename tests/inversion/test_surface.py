@@ -141,6 +141,10 @@ def test_prior_gradients_match_central_differences_everywhere(lines):
     # ground in their shadows (held at the flat seabed)
     problem.objects = (rng.uniform(size=problem.kz) < 0.2).astype(float)
     problem.shadowed = ((rng.uniform(size=problem.kz) < 0.2) & (problem.objects == 0)) * 1.0
+    # a calibrated beam's shape held on port's inner nodes
+    held = np.zeros(problem.grid.nodes)
+    held[1:-2] = 1.0
+    problem.beam_reference = {"port": (rng.normal(0.0, 0.3, held.size) * held, held)}
 
     def priors(q):
         grad = np.zeros_like(q)
@@ -332,6 +336,9 @@ def test_a_flat_seabed_comes_out_level_with_the_multigrid_steps(monkeypatch):
 
 
 def test_cli_surface_method_writes_both_sides_with_their_std(tmp_path):
+    """... and takes an earlier run's beam profile (calibrated mode: its folder or a file)."""
+    import json
+
     from sonar_raster.cli.app import main
 
     image = tmp_path / "line.exr"
@@ -342,8 +349,14 @@ def test_cli_surface_method_writes_both_sides_with_their_std(tmp_path):
     for side in ("port", "starboard"):
         names = {p.name for p in (out / side).iterdir()}
         assert {"elevation.exr", "elevation_std.exr", "reflectivity.exr"} <= names
-    assert main([*args, "--beam", str(image), "-o", str(tmp_path / "other")]) == 2
-    assert not (tmp_path / "other").exists()
+    for beam in (out, out / "port" / "beam_profile.json"):
+        again = tmp_path / f"again_{beam.suffix}"
+        assert main([*args, "--beam", str(beam), "-o", str(again)]) == 0
+        doc = json.loads((again / "starboard" / "inversion.json").read_text())
+        assert doc["settings"]["calibrated"] is True
+    for beam in (image, tmp_path):  # not a profile; a folder without one
+        assert main([*args, "--beam", str(beam), "-o", str(tmp_path / "other")]) == 2
+        assert not (tmp_path / "other").exists()
 
 
 @pytest.mark.parametrize("lines", [1, 2])

@@ -12,7 +12,7 @@ from .layout import Line
 from .solve import EDGE_BINS, SurfaceFit, fit_lines
 
 if TYPE_CHECKING:
-    from ..solver import Inversion
+    from ..solver import BeamProfile, Inversion
 
 
 def invert_lines(
@@ -22,6 +22,7 @@ def invert_lines(
     levels: int = 2,
     max_iter: int = 150,
     uncertainty: bool = True,
+    beam: BeamProfile | Mapping[str, BeamProfile] | None = None,
     progress=None,
 ) -> list[dict[str, Inversion]]:
     """One surface fitted to every side of every line, returned per line and side.
@@ -33,7 +34,7 @@ def invert_lines(
     ----------
     lines : sequence of Line
         The lines (:class:`.layout.Line`).
-    looks, levels, max_iter, uncertainty, progress
+    looks, levels, max_iter, uncertainty, beam, progress
         As for :func:`.solve.fit_lines`.
 
     Returns
@@ -47,12 +48,14 @@ def invert_lines(
         levels=levels,
         max_iter=max_iter,
         uncertainty=uncertainty,
+        beam=beam,
         progress=progress,
     )
     given = [line.altitude is not None for line in lines]
+    settings = {"levels": levels, "max_iter": max_iter, "calibrated": beam is not None}
     return [
         {
-            name: _inversion(fit, name, image, line.range_bin, line, levels, max_iter, known)
+            name: _inversion(fit, name, image, line.range_bin, line, settings, known)
             for name, image in line.sides.items()
         }
         for line, fit, known in zip(lines, fits, given, strict=True)
@@ -95,8 +98,7 @@ def _inversion(
     image: np.ndarray,
     range_bin: float,
     line: Line,
-    levels: int,
-    max_iter: int,
+    settings: dict,
     altitude_given: bool,
 ) -> Inversion:
     from ..ground import slant_to_ground
@@ -114,11 +116,9 @@ def _inversion(
     depression, gain = fit.profile[name]
     settings = {
         "method": "surface",
-        "levels": levels,
-        "max_iter": max_iter,
+        **settings,
         "looks": fit.looks[name],
         "altitude": "given" if altitude_given else "first return",
-        "calibrated": False,
     }
     inv = Inversion(
         fit.x,

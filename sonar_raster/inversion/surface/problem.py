@@ -31,6 +31,9 @@ REFLECTIVITY_WEIGHT = 0.5
 REFLECTIVITY_EDGE = 0.05
 #: Weight of the curvature of log Φ against angle, in the same units, per node.
 BEAM_WEIGHT = 10.0
+#: Standard deviation of log Φ about a calibrated beam profile's shape, per node (0.02: about
+#: 0.1 dB, a calibration's own spread; its level stays free per side).
+CALIBRATED_BEAM_STD = 0.02
 #: Standard deviation of the first-return altitude per ping, in range bins: the bottom
 #: tracker's own error on a single look (a phase bias of up to a third of a bin); its reading
 #: of a rough seabed's crests is taken off first (``solve.CREST_OFFSET``).
@@ -113,6 +116,8 @@ class Problem:
         ky, kx = (len(k) for k in grid.knots("z"))
         self.kz = (ky, kx)
         self._line_operators: list[tuple] | None = None
+        #: The line-profile prior's low-pass, as a fraction of the altitude (set before use).
+        self.line_scale = LINE_PROFILE_SCALE
         self.objects = np.zeros(self.kz)
         self.shadowed = np.zeros(self.kz)
         ry, rx = (len(k) for k in grid.knots("r"))
@@ -140,6 +145,9 @@ class Problem:
         #: crests, as far as the data confirm them: ``solve._track_model``; 0 until measured),
         #: taken off the tracked altitude by the anchor.
         self.anchor_offset: dict[int, float] = dict.fromkeys(self.anchored, 0.0)
+        #: Per side, a calibrated log Φ at each node and where it holds (1) or not (0): the
+        #: beam's shape is held there, its level left free (empty: Φ free).
+        self.beam_reference: dict[str, tuple[np.ndarray, np.ndarray]] = {}
 
     @property
     def objects(self) -> np.ndarray:
@@ -176,7 +184,7 @@ class Problem:
                 weights = sparse.diags((keep / count[None, :]).ravel())
                 average = (total @ weights @ view.bz).tocsr()
                 nadir = np.asarray(view.nadir.sum(axis=0)).ravel() / pings
-                sigma = LINE_PROFILE_SCALE * float(np.nanmedian(view.altitude)) / view.geom.dx
+                sigma = self.line_scale * float(np.nanmedian(view.altitude)) / view.geom.dx
                 # per knot along the line and across it, as in data units elsewhere
                 w = self.w_line * (pings * view.geom.dy / spacing) * (view.geom.dx / spacing)
                 ops.append((average, nadir, sigma, w))
@@ -314,6 +322,12 @@ class Problem:
             value, g = second_difference(lphi[side], 0, 1.0, self.w_phi)
             total += value
             grad[self.phi_slice(side)] += g
+        w = 1.0 / (2.0 * CALIBRATED_BEAM_STD**2)
+        for side, (target, held) in self.beam_reference.items():
+            d = lphi[side] - target
+            res = held * (d - float(np.sum(held * d)) / max(float(np.sum(held)), 1.0))
+            total += w * float(np.sum(res * res))
+            grad[self.phi_slice(side)] += 2.0 * w * res
         return total
 
     def anchor_std(self, view: View) -> float:
@@ -480,7 +494,7 @@ def line_profile_reference(problem: Problem, dev: np.ndarray) -> tuple[float, np
         keep = 1.0 - np.clip(np.asarray(view.bz @ objects).reshape(pings, cells), 0.0, 1.0)
         count = np.maximum(keep.sum(axis=0), 1e-9)
         m = (keep * d).sum(axis=0) / count - float(np.mean(view.nadir @ dev))
-        sigma = LINE_PROFILE_SCALE * float(np.nanmedian(view.altitude)) / view.geom.dx
+        sigma = problem.line_scale * float(np.nanmedian(view.altitude)) / view.geom.dx
         low = ndimage.gaussian_filter1d(m, sigma, mode="constant")
         w = problem.w_line * (pings * view.geom.dy / spacing) * (view.geom.dx / spacing)
         value += w * float(np.sum(low * low))

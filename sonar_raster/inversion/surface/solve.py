@@ -11,6 +11,7 @@ from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from functools import partial
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy import ndimage, optimize, sparse
@@ -31,6 +32,13 @@ from .layout import (
 )
 from .problem import Grid, Problem, flat_start_knots, line_profile, soft_shadow
 
+if TYPE_CHECKING:
+    from ..solver import BeamProfile
+
+#: The line-profile prior's weight (as a fraction of its own) in calibrated mode.
+CALIBRATED_LINE_WEIGHT = 1.0
+#: Its low-pass in calibrated mode, as a fraction of the altitude.
+CALIBRATED_LINE_SCALE = 1.0
 #: Knot spacing of Z and of log R in range bins when not given.
 Z_KNOT_BINS = 4.0
 R_KNOT_BINS = 4.0
@@ -164,6 +172,7 @@ def fit_lines(
     levels: int = 2,
     max_iter: int = 150,
     uncertainty: bool = True,
+    beam: BeamProfile | Mapping[str, BeamProfile] | None = None,
     progress: Progress | None = None,
 ) -> list[SurfaceFit]:
     """Fit one seabed surface, its reflectivity and each side's beam profile to several lines.
@@ -189,6 +198,13 @@ def fit_lines(
         (``GAUSS_NEWTON_STEPS = 0``).
     uncertainty : bool
         Estimate the standard deviation of Z per cell (:func:`elevation_std`).
+    beam : BeamProfile or mapping of str to BeamProfile, optional
+        Calibrated mode: a beam profile from an earlier fit of the same sensor (e.g. a
+        ``beam_profile.json``), one for every side or one per side. Its shape is held where its
+        angles reach (:data:`.problem.CALIBRATED_BEAM_STD`), its level is fitted; relief that
+        every ping shares (a trench along the track), which a free Φ would absorb, is then
+        seen, and the prior on the line-averaged profile of Z, which stood in for the
+        calibration, is left out.
     progress : callable, optional
         Called with a line of text after each level.
 
@@ -204,6 +220,10 @@ def fit_lines(
     energies, evaluations = [], []
     for f, grid in grids:
         problem = _level(prepared, frame, grid, f)
+        if beam:
+            problem.beam_reference = beam_reference(grid, beam)
+            problem.w_line *= CALIBRATED_LINE_WEIGHT
+            problem.line_scale = CALIBRATED_LINE_SCALE
         if params is None or previous is None:
             params = _start(problem)
             if SHADOW_START_BINS is not None:
@@ -234,6 +254,34 @@ def fit_lines(
     if progress is not None:
         progress(f"done in {time.perf_counter() - start:.0f} s")
     return _results(previous, params, frame, std, energies, evaluations)
+
+
+def beam_reference(
+    grid: Grid, beam: BeamProfile | Mapping[str, BeamProfile]
+) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per side of ``grid``, a calibrated profile's log Φ at the Φ nodes and where it holds.
+
+    A node holds where its angle lies within the profile's angles and the profile is > 0
+    there; a side a mapping lacks stays free.
+    """
+    theta = np.linspace(*grid.angles, grid.nodes)
+    out = {}
+    for side in grid.sides:
+        profile = beam.get(side) if isinstance(beam, Mapping) else beam
+        if profile is None:
+            continue
+        gain = profile(theta)
+        lo, hi = float(np.min(profile.depression)), float(np.max(profile.depression))
+        held = (theta >= lo) & (theta <= hi) & (gain > 0)
+        if held.sum() < 2:
+            raise SonarRasterError(
+                f"the {side} beam profile covers {math.degrees(lo):.1f}-{math.degrees(hi):.1f}°"
+                f" of depression, the lines need {math.degrees(grid.angles[0]):.1f}-"
+                f"{math.degrees(grid.angles[1]):.1f}°; calibrate on a line of similar altitude"
+            )
+        target = np.log(np.where(held, gain, 1.0))
+        out[side] = (np.where(held, target, 0.0), held.astype(np.float64))
+    return out
 
 
 def _report_step(
