@@ -119,7 +119,7 @@ def test_refuses_bad_input():
 @pytest.mark.parametrize("lines", [1, 2])
 def test_the_line_profile_prior_equals_its_ping_by_ping_definition(lines):
     """Its precomputed line averages (made once per set of objects) against the definition;
-    setting new objects must remake them."""
+    setting new objects, or a side's own weight and low-pass, must remake them."""
     problem, p, rng = _problem(3, lines=lines)
     dev = p[: problem.nz] - problem.flat.ravel() + rng.normal(0.0, 0.05, problem.nz)
     for fraction in (0.0, 0.2, 0.5):
@@ -128,6 +128,13 @@ def test_the_line_profile_prior_equals_its_ping_by_ping_definition(lines):
         expected, expected_grad = problem_module.line_profile_reference(problem, dev)
         assert value > 0 and value == pytest.approx(expected, rel=1e-10)
         np.testing.assert_allclose(grad, expected_grad, rtol=1e-9, atol=1e-12 * abs(grad).max())
+    before = value
+    problem.line_prior = {"port": (0.5, 1.0)}  # a calibrated side: its own weight and low-pass
+    value, grad = problem_module.line_profile(problem, dev)
+    expected, expected_grad = problem_module.line_profile_reference(problem, dev)
+    assert value != pytest.approx(before, rel=1e-3)
+    assert value == pytest.approx(expected, rel=1e-10)
+    np.testing.assert_allclose(grad, expected_grad, rtol=1e-9, atol=1e-12 * abs(grad).max())
 
 
 @pytest.mark.parametrize("lines", [1, 2])

@@ -116,8 +116,7 @@ class Problem:
         ky, kx = (len(k) for k in grid.knots("z"))
         self.kz = (ky, kx)
         self._line_operators: list[tuple] | None = None
-        #: The line-profile prior's low-pass, as a fraction of the altitude (set before use).
-        self.line_scale = LINE_PROFILE_SCALE
+        self._line_prior: dict[str, tuple[float, float]] = {}
         self.objects = np.zeros(self.kz)
         self.shadowed = np.zeros(self.kz)
         ry, rx = (len(k) for k in grid.knots("r"))
@@ -159,6 +158,20 @@ class Problem:
         self._objects = value
         self._line_operators = None  # the line profile's average leaves the objects out
 
+    @property
+    def line_prior(self) -> dict[str, tuple[float, float]]:
+        """Per side, the line-profile prior's weight factor and low-pass where they differ.
+
+        ``(factor, scale)``, the low-pass a fraction of the altitude; ``(1,
+        LINE_PROFILE_SCALE)`` where a side is absent (in the fit: the calibrated sides).
+        """
+        return self._line_prior
+
+    @line_prior.setter
+    def line_prior(self, value: dict[str, tuple[float, float]]) -> None:
+        self._line_prior = dict(value)
+        self._line_operators = None
+
     def line_operators(self) -> list[tuple[sparse.csr_matrix, np.ndarray, float, float]]:
         """Per view, what :func:`line_profile` needs, made once per set of objects.
 
@@ -184,9 +197,15 @@ class Problem:
                 weights = sparse.diags((keep / count[None, :]).ravel())
                 average = (total @ weights @ view.bz).tocsr()
                 nadir = np.asarray(view.nadir.sum(axis=0)).ravel() / pings
-                sigma = self.line_scale * float(np.nanmedian(view.altitude)) / view.geom.dx
+                factor, scale = self.line_prior.get(view.side, (1.0, LINE_PROFILE_SCALE))
+                sigma = scale * float(np.nanmedian(view.altitude)) / view.geom.dx
                 # per knot along the line and across it, as in data units elsewhere
-                w = self.w_line * (pings * view.geom.dy / spacing) * (view.geom.dx / spacing)
+                w = (
+                    factor
+                    * self.w_line
+                    * (pings * view.geom.dy / spacing)
+                    * (view.geom.dx / spacing)
+                )
                 ops.append((average, nadir, sigma, w))
             self._line_operators = ops
         return self._line_operators
@@ -494,9 +513,10 @@ def line_profile_reference(problem: Problem, dev: np.ndarray) -> tuple[float, np
         keep = 1.0 - np.clip(np.asarray(view.bz @ objects).reshape(pings, cells), 0.0, 1.0)
         count = np.maximum(keep.sum(axis=0), 1e-9)
         m = (keep * d).sum(axis=0) / count - float(np.mean(view.nadir @ dev))
-        sigma = problem.line_scale * float(np.nanmedian(view.altitude)) / view.geom.dx
+        factor, scale = problem.line_prior.get(view.side, (1.0, LINE_PROFILE_SCALE))
+        sigma = scale * float(np.nanmedian(view.altitude)) / view.geom.dx
         low = ndimage.gaussian_filter1d(m, sigma, mode="constant")
-        w = problem.w_line * (pings * view.geom.dy / spacing) * (view.geom.dx / spacing)
+        w = factor * problem.w_line * (pings * view.geom.dy / spacing) * (view.geom.dx / spacing)
         value += w * float(np.sum(low * low))
         g_m = ndimage.gaussian_filter1d(2.0 * w * low, sigma, mode="constant")
         grad += view.bz.T @ (keep * (g_m / count)[None, :]).ravel()

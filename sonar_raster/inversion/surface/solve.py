@@ -35,9 +35,10 @@ from .problem import Grid, Problem, flat_start_knots, line_profile, soft_shadow
 if TYPE_CHECKING:
     from ..solver import BeamProfile
 
-#: The line-profile prior's weight (as a fraction of its own) in calibrated mode.
+#: The line-profile prior's weight (a factor on its own) and low-pass (a fraction of the
+#: altitude) on a calibrated side: Φ's shape known, it only keeps the swath's level (without it
+#: sand waves' far swath floated 5 cm up; a quarter of the altitude held trenches flat).
 CALIBRATED_LINE_WEIGHT = 1.0
-#: Its low-pass in calibrated mode, as a fraction of the altitude.
 CALIBRATED_LINE_SCALE = 1.0
 #: Knot spacing of Z and of log R in range bins when not given.
 Z_KNOT_BINS = 4.0
@@ -222,8 +223,8 @@ def fit_lines(
         problem = _level(prepared, frame, grid, f)
         if beam:
             problem.beam_reference = beam_reference(grid, beam)
-            problem.w_line *= CALIBRATED_LINE_WEIGHT
-            problem.line_scale = CALIBRATED_LINE_SCALE
+            calibrated = (CALIBRATED_LINE_WEIGHT, CALIBRATED_LINE_SCALE)
+            problem.line_prior = dict.fromkeys(problem.beam_reference, calibrated)
         if params is None or previous is None:
             params = _start(problem)
             if SHADOW_START_BINS is not None:
