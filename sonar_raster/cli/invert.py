@@ -612,7 +612,10 @@ def _invert_lines(args: argparse.Namespace) -> int:
 
 
 def _line_options(args: argparse.Namespace, beam_profile: Any) -> dict[str, Any]:
-    """The inversion options of an XTF line (profiles: the solver's; surface: looks, max_iter)."""
+    """The inversion options of an XTF line.
+
+    Profiles: the solver's; surface: looks, max_iter and the calibrated beam of ``--beam``.
+    """
     if args.method == "surface":
         if args.flat_prior:
             raise SonarRasterError("--flat-prior is not used by --method surface; leave it out")
