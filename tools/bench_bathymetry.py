@@ -16,9 +16,10 @@ a rough plain (0.1 m rms, 1 m correlation) with two reflectivity patches (0.9 an
 boulders (20 half-spheres, 0.3–0.8 m across, on a flat seabed); a wreck-like box (6 × 2.5 m,
 1.5 m high) on a flat seabed.
 
-With ``--beam calibrated`` each seabed is also fitted in calibrated mode: each side's beam
-profile from a fit of a flat seabed (the same sonar and lines, its own speckle draw) is passed
-as ``fit_lines(beam=...)``; such rows are marked ``c`` (the flat fit is not timed).
+With ``--beam calibrated`` (or ``free,calibrated`` for both) each seabed is fitted in
+calibrated mode: each side's beam profile from a fit of a flat seabed (the same sonar and lines,
+its own speckle draw) is passed as ``fit_lines(beam=...)``; such rows are marked ``c`` (the
+flat seabed's fit is not timed).
 
 Usage: ``python tools/bench_bathymetry.py [--seabeds sand,mound,...] [--looks 0,1]
 [--pings 200] [--beam free,calibrated] [--out bench_out]``.

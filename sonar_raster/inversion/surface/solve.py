@@ -204,8 +204,8 @@ def fit_lines(
         ``beam_profile.json``), one for every side or one per side. Its shape is held where its
         angles reach (:data:`.problem.CALIBRATED_BEAM_STD`), its level is fitted; relief that
         every ping shares (a trench along the track), which a free Φ would absorb, is then
-        seen, and the prior on the line-averaged profile of Z, which stood in for the
-        calibration, is left out.
+        seen; the prior on the line-averaged profile of Z, which stood in for the calibration,
+        only keeps the swath's level there (its low-pass widened, ``CALIBRATED_LINE_SCALE``).
     progress : callable, optional
         Called with a line of text after each level.
 
