@@ -6,11 +6,14 @@ import argparse
 from collections.abc import Callable
 from functools import partial
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .._checks import cli_positive
 from ..errors import SonarRasterError
 from .track import parse_pings
+
+if TYPE_CHECKING:
+    from ..inversion.solver import BeamProfile
 
 #: Looks below which the profiles' summary points to ``--method surface``: on the bathymetry
 #: bench's single-look seabeds the profiles score 1.02-1.34 × the relief std (the first
@@ -630,7 +633,7 @@ def _line_options(args: argparse.Namespace, beam_profile: Any) -> dict[str, Any]
     return options
 
 
-def surface_beam(path: str) -> Any:
+def surface_beam(path: str) -> BeamProfile | dict[str, BeamProfile]:
     """``--beam`` of the surface fit: one profile for every side, or one per side.
 
     A file is a ``beam_profile.json``; a folder is an earlier ``invert`` run's output, whose

@@ -52,10 +52,10 @@ def invert_lines(
         progress=progress,
     )
     given = [line.altitude is not None for line in lines]
-    settings = {"levels": levels, "max_iter": max_iter, "calibrated": beam is not None}
+    options = {"levels": levels, "max_iter": max_iter, "calibrated": beam is not None}
     return [
         {
-            name: _inversion(fit, name, image, line.range_bin, line, settings, known)
+            name: _inversion(fit, name, image, line.range_bin, line, options, known)
             for name, image in line.sides.items()
         }
         for line, fit, known in zip(lines, fits, given, strict=True)
@@ -98,7 +98,7 @@ def _inversion(
     image: np.ndarray,
     range_bin: float,
     line: Line,
-    settings: dict,
+    options: dict,
     altitude_given: bool,
 ) -> Inversion:
     from ..ground import slant_to_ground
@@ -116,7 +116,7 @@ def _inversion(
     depression, gain = fit.profile[name]
     settings = {
         "method": "surface",
-        **settings,
+        **options,
         "looks": fit.looks[name],
         "altitude": "given" if altitude_given else "first return",
     }

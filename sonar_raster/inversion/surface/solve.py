@@ -280,8 +280,7 @@ def beam_reference(
                 f" of depression, the lines need {math.degrees(grid.angles[0]):.1f}-"
                 f"{math.degrees(grid.angles[1]):.1f}°; calibrate on a line of similar altitude"
             )
-        target = np.log(np.where(held, gain, 1.0))
-        out[side] = (np.where(held, target, 0.0), held.astype(np.float64))
+        out[side] = (np.log(np.where(held, gain, 1.0)), held.astype(np.float64))
     return out
 
 
