@@ -19,10 +19,11 @@ boulders (20 half-spheres, 0.3–0.8 m across, on a flat seabed); a wreck-like b
 With ``--beam calibrated`` (or ``free,calibrated`` for both) each seabed is fitted in
 calibrated mode: each side's beam profile from a fit of a flat seabed (the same sonar and lines,
 its own speckle draw) is passed as ``fit_lines(beam=...)``; such rows are marked ``c`` (the
-flat seabed's fit is not timed).
+flat seabed's fit is not timed). ``--finest 1,2`` also fits each seabed with the finest level
+pooled 2 × 2 (``fit_lines(finest=2)``, ``invert --coarsen 2``); such rows are marked ``/2``.
 
 Usage: ``python tools/bench_bathymetry.py [--seabeds sand,mound,...] [--looks 0,1]
-[--pings 200] [--beam free,calibrated] [--out bench_out]``.
+[--pings 200] [--beam free,calibrated] [--finest 1,2] [--out bench_out]``.
 """
 
 from __future__ import annotations
@@ -168,15 +169,16 @@ def score(field, fits, baselines) -> tuple[float, float, float, float]:
     return rel, flat, float(np.corrcoef(f, t)[0, 1]), coverage
 
 
-def fit(tracks, images, joint: bool, beam=None):
-    """The surface fit of every line together, or of each line alone (``beam``: calibrated)."""
+def fit(tracks, images, joint: bool, beam=None, finest: int = 1):
+    """The surface fit of every line together, or of each line alone (``beam``: calibrated;
+    ``finest``: the finest level's pooling)."""
     lines = [
         Line(sides, BIN, t.positions[:, :2], t.headings)
         for t, sides in zip(tracks, images, strict=True)
     ]
     if joint:
-        return fit_lines(lines, beam=beam)
-    return [fit_lines([line], beam=beam)[0] for line in lines]
+        return fit_lines(lines, beam=beam, finest=finest)
+    return [fit_lines([line], beam=beam, finest=finest)[0] for line in lines]
 
 
 def calibrate(pings: int, looks: float, lines: int, overlap: float) -> dict[str, BeamProfile]:
@@ -202,7 +204,11 @@ def main() -> None:
         default="free",
         help="free and/or calibrated (each side's profile from a flat seabed's fit, reused)",
     )
+    cli.add_argument(
+        "--finest", default="1", help="finest level's pooling per run, e.g. 1,2 (invert --coarsen)"
+    )
     args = cli.parse_args()
+    finests = [int(v) for v in args.finest.split(",")]
     modes_beam = args.beam.split(",")
     if not set(modes_beam) <= {"free", "calibrated"}:
         cli.error("--beam takes free and/or calibrated")
@@ -218,7 +224,7 @@ def main() -> None:
                 field, tracks, images = render(name, args.pings, looks, count, args.overlap)
                 baselines = [track_bottom(sides, BIN).altitude for sides in images]
                 modes = [True, False] if args.independent and count > 1 else [True]
-                for joint, mode in itertools.product(modes, modes_beam):
+                for joint, mode, finest in itertools.product(modes, modes_beam, finests):
                     beam = None
                     if mode == "calibrated":
                         key = (looks, count)
@@ -226,11 +232,12 @@ def main() -> None:
                             profiles[key] = calibrate(args.pings, looks, count, args.overlap)
                         beam = profiles[key]
                     start = time.perf_counter()
-                    fits = fit(tracks, images, joint, beam)
+                    fits = fit(tracks, images, joint, beam, finest)
                     seconds = time.perf_counter() - start
                     rel, flat, corr, coverage = score(field, fits, baselines)
                     label = f"{count}" + ("" if joint or count == 1 else "x1")
                     label += "c" if beam else ""
+                    label += f"/{finest}" if finest > 1 else ""
                     rows.append((name, looks, rel, flat, seconds, label))
                     print(
                         f"{name:9s} {label:>5s} {looks:5g} {rel:6.3f} {flat:6.3f} "
@@ -240,8 +247,9 @@ def main() -> None:
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 3.2))
     labels = [
-        f"{n}\n{'speckle' if lk else 'clean'}\n{c.rstrip('c')} line(s)"
+        f"{n}\n{'speckle' if lk else 'clean'}\n{c.split('/')[0].rstrip('c')} line(s)"
         + ("\ncal." if "c" in c else "")
+        + (f"\npooled {c.split('/')[1]}" if "/" in c else "")
         for n, lk, *_, c in rows
     ]
     pos = np.arange(len(rows))

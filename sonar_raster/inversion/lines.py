@@ -392,7 +392,8 @@ def invert_lines(
         Progress bars (profiles) or per-step lines (surface).
     **options
         ``"profiles"``: :func:`.solver.invert`'s options; ``"surface"``: ``looks``,
-        ``max_iter`` and ``beam`` (a calibrated profile, one or per side; others are refused).
+        ``max_iter``, ``beam`` (a calibrated profile, one or per side) and ``finest`` (the
+        finest level's pooling); others are refused.
 
     Returns
     -------
@@ -426,8 +427,8 @@ def invert_lines(
 
 
 def surface_options(options: dict[str, Any]) -> dict[str, Any]:
-    """``looks``, ``max_iter`` and ``beam`` for :func:`.surface.invert_line`; others refused."""
-    unused = sorted(set(options) - {"looks", "max_iter", "beam"})
+    """The surface fit's options (``looks``, ``max_iter``, ``beam``, ``finest``); others refused."""
+    unused = sorted(set(options) - {"looks", "max_iter", "beam", "finest"})
     if unused:
         raise SonarRasterError(f"{', '.join(unused)} not used by the surface fit; leave it out")
     looks = options.get("looks", "auto")
@@ -435,6 +436,7 @@ def surface_options(options: dict[str, Any]) -> dict[str, Any]:
         "looks": "auto" if looks in ("auto", None) else looks,
         "max_iter": options.get("max_iter", 150),
         "beam": options.get("beam"),
+        "finest": options.get("finest", 1),
     }
 
 

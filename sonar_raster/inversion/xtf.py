@@ -153,7 +153,7 @@ def invert_xtf(
         sides (:func:`.surface.invert_lines`, with ``elevation_std``).
     **options
         Passed to :func:`.solver.invert` (``max_iter``, ``levels``, ``tol``,
-        ``beam``); for ``"surface"`` only ``max_iter``, ``looks`` and ``beam``.
+        ``beam``); for ``"surface"`` only ``max_iter``, ``looks``, ``beam`` and ``finest``.
 
     Returns
     -------

@@ -20,6 +20,7 @@ def invert_lines(
     *,
     looks: float | str = "auto",
     levels: int = 2,
+    finest: int = 1,
     max_iter: int = 150,
     uncertainty: bool = True,
     beam: BeamProfile | Mapping[str, BeamProfile] | None = None,
@@ -34,7 +35,7 @@ def invert_lines(
     ----------
     lines : sequence of Line
         The lines (:class:`.layout.Line`).
-    looks, levels, max_iter, uncertainty, beam, progress
+    looks, levels, finest, max_iter, uncertainty, beam, progress
         As for :func:`.solve.fit_lines`.
 
     Returns
@@ -46,13 +47,19 @@ def invert_lines(
         lines,
         looks=looks,
         levels=levels,
+        finest=finest,
         max_iter=max_iter,
         uncertainty=uncertainty,
         beam=beam,
         progress=progress,
     )
     given = [line.altitude is not None for line in lines]
-    options = {"levels": levels, "max_iter": max_iter, "calibrated": beam is not None}
+    options = {
+        "levels": levels,
+        "finest": finest,
+        "max_iter": max_iter,
+        "calibrated": beam is not None,
+    }
     return [
         {
             name: _inversion(fit, name, image, line.range_bin, line, options, known)

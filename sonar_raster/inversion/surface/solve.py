@@ -171,6 +171,7 @@ def fit_lines(
     z_knot: float | None = None,
     r_knot: float | None = None,
     levels: int = 2,
+    finest: int = 1,
     max_iter: int = 150,
     uncertainty: bool = True,
     beam: BeamProfile | Mapping[str, BeamProfile] | None = None,
@@ -194,6 +195,12 @@ def fit_lines(
         its ping spacing).
     levels : int
         Resolution levels (each halves pings and bins), coarse to fine.
+    finest : int
+        Pooling of the finest level fitted: 1 (default) fits the images as they are; 2 or 4
+        stop at the images pooled 2 × 2 or 4 × 4 (knots that much wider), about 4 or 16 times
+        faster; the products still come at every ping and bin, from the wider knots. On
+        single-look speckle 2 scores as well as 1 on smooth seabeds and loses objects' edges
+        (docs/inversion.md, "Coarser fits").
     max_iter : int
         Most L-BFGS iterations per level where the fit is plain L-BFGS
         (``GAUSS_NEWTON_STEPS = 0``).
@@ -215,7 +222,7 @@ def fit_lines(
         One per line, in order.
     """
     start = time.perf_counter()
-    prepared, frame, grids = _setup(lines, looks, z_knot, r_knot, levels)
+    prepared, frame, grids = _setup(lines, looks, z_knot, r_knot, levels, finest)
     params: np.ndarray | None = None
     previous: Problem | None = None
     energies, evaluations = [], []
@@ -251,10 +258,12 @@ def fit_lines(
         progress(
             f"uncertainty of Z: {LAPLACE_SAMPLES} samples of {previous.nz + previous.nr} knots"
         )
-    std = elevation_std(previous, params) if uncertainty else {}
+    # the products at every ping and bin, from the knots of the finest level fitted
+    full = previous if finest == 1 else _level(prepared, frame, previous.grid, 1)
+    std = elevation_std(previous, params, cells=full) if uncertainty else {}
     if progress is not None:
         progress(f"done in {time.perf_counter() - start:.0f} s")
-    return _results(previous, params, frame, std, energies, evaluations)
+    return _results(full, params, frame, std, energies, evaluations)
 
 
 def beam_reference(
@@ -292,7 +301,7 @@ def _report_step(
     progress(f"{level}: Gauss-Newton step {k}/{steps}, E {value:.6g} ({elapsed:.0f} s)")
 
 
-def _setup(lines, looks, z_knot, r_knot, levels):
+def _setup(lines, looks, z_knot, r_knot, levels, finest=1):
     """Checked lines with their altitude, height and looks; the frame; the grid per level."""
     from ..bottom import track_bottom
     from ..ground import check_slant
@@ -321,7 +330,7 @@ def _setup(lines, looks, z_knot, r_knot, levels):
     sides = tuple(s for s in ("port", "starboard") if any(s in p[1] for p in prepared))
     grids = [
         (f, Grid(extent, zs * f, rs * f, angles[:2], angles[2], sides))
-        for f in [2**k for k in range(levels - 1, -1, -1)]
+        for f in [finest * 2**k for k in range(levels - 1, -1, -1)]
     ]
     return prepared, frame, grids
 
@@ -446,6 +455,7 @@ def _level(prepared, frame: Frame, grid: Grid, f: int) -> Problem:
                     br=tensor_basis(y_pts.ravel(), x_pts.ravel(), grid.extent, grid.r_spacing),
                     nadir=tensor_basis(ny, nx, grid.extent, grid.z_spacing),
                     points=(y_pts, x_pts),
+                    tracked_bin=line.range_bin,
                 )
             )
     ky, kx = (len(k) for k in grid.knots("z"))
@@ -659,6 +669,7 @@ def elevation_std(
     samples: int = LAPLACE_SAMPLES,
     seed: int = 0,
     reflectivity: bool = True,
+    cells: Problem | None = None,
 ) -> dict[tuple[int, str], np.ndarray]:
     """Standard deviation of Z per cell of each view (line, side), Laplace approximation.
 
@@ -670,10 +681,12 @@ def elevation_std(
     holds R too). R belongs in it because shading can be explained by either. Samples
     ``H⁻¹ (Jᵀ ε₁ + Σ Dᵀ ε₂)`` with ``ε`` standard normal have exactly that covariance
     (:func:`laplace_draws`), all solved together (:func:`_symmetric_solver`). A cell's standard
-    deviation is that of its interpolated Z over the samples.
+    deviation is that of its interpolated Z over the samples; ``cells`` (a problem on the
+    same grid, e.g. at full resolution where ``problem`` is pooled) gives the cells.
     """
     h, rhs = laplace_draws(problem, p, samples, seed, reflectivity)
-    return draws_std(problem, _symmetric_solver(h, problem.nz)(rhs)[: problem.nz])
+    draws = _symmetric_solver(h, problem.nz)(rhs)[: problem.nz]
+    return draws_std(problem if cells is None else cells, draws)
 
 
 def draws_std(problem: Problem, knots: np.ndarray) -> dict[tuple[int, str], np.ndarray]:
