@@ -123,7 +123,7 @@ def render(name: str, pings: int, looks: float, lines: int = 1, overlap: float =
     reach = math.sqrt(RANGE**2 - ALT**2)
     spacing = 2.0 * reach * (1.0 - overlap)
     offsets = [(k - (lines - 1) / 2) * spacing for k in range(lines)]
-    half = 33.0 + max(abs(o) for o in offsets)
+    half = max(33.0, reach + 3.0) + max(abs(o) for o in offsets)  # seabed past every swath
     x = np.arange(-half, half + CELL / 2, CELL)
     y = np.arange(-3.0, length + 3.0 + CELL / 2, CELL)
     xx, yy = np.meshgrid(x, y)
