@@ -99,6 +99,24 @@ def test_bspline_basis_reproduces_linear_functions():
     assert np.allclose(basis @ (2.0 * centres - 1.0), 2.0 * x - 1.0)
 
 
+@pytest.mark.parametrize(("start", "stop", "spacing"), [(-3.0, 7.0, 0.5), (0.3, 41.7, 0.23)])
+def test_bspline_basis_equals_scipys_design_matrix(start, stop, spacing):
+    """The closed-form uniform cubic rows against scipy's de Boor evaluation, at random points,
+    on every knot, at both ends and beyond them (clipped)."""
+    from scipy.interpolate import BSpline
+
+    spans = math.ceil((stop - start) / spacing - 1e-9)
+    knots = start + spacing * np.arange(-3, spans + 4)
+    rng = np.random.default_rng(1)
+    points = np.concatenate(
+        [rng.uniform(start, stop, 500), knots[3 : spans + 4], [start - 1.0, stop + 1.0]]
+    )
+    expected = BSpline.design_matrix(np.clip(points, knots[3], knots[spans + 3]), knots, 3)
+    got = layout.bspline_basis(points, start, stop, spacing)
+    got.check_format(full_check=True)  # no column past the last basis function
+    np.testing.assert_allclose(got.toarray(), expected.toarray(), rtol=0, atol=1e-12)
+
+
 def test_soft_shadow_follows_the_line_of_sight():
     x = np.arange(1, 201) * 0.05
     z = np.full((1, x.size), -5.0)
@@ -115,6 +133,9 @@ def test_refuses_bad_input():
         surface.fit_surface({"left": np.ones((4, 50))}, 0.1, ping_spacing=0.1)
     with pytest.raises(SonarRasterError, match="ping spacing"):
         surface.fit_surface({"port": np.ones((4, 50))}, 0.1, ping_spacing=0.0)
+    for bad in (0, 1.5):
+        with pytest.raises(SonarRasterError, match="finest"):
+            surface.fit_surface({"port": np.ones((4, 50))}, 0.1, ping_spacing=0.1, finest=bad)
 
 
 @pytest.mark.parametrize("lines", [1, 2])

@@ -15,7 +15,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import sparse
-from scipy.interpolate import BSpline
 
 from ...errors import SonarRasterError
 from ..model import Geometry
@@ -42,11 +41,44 @@ def bspline_basis(
     scipy.sparse.csr_matrix, shape (n, knots)
         Row i holds the weights of the coefficients at ``points[i]`` (they sum to 1).
     """
-    degree = 3
+    cols, weights, count = cubic_rows(points, start, stop, spacing)
+    n = cols.shape[0]
+    indptr = np.arange(0, 4 * n + 1, 4)
+    return sparse.csr_matrix((weights.ravel(), cols.ravel(), indptr), shape=(n, count))
+
+
+def cubic_rows(
+    points: np.ndarray, start: float, stop: float, spacing: float
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """The rows of :func:`bspline_basis` as arrays: per point its 4 columns and weights.
+
+    On uniform knots the 4 cubic B-splines that are non-zero on a span are fixed polynomials
+    of the position ``s`` within it (de Boor's recursion, solved once): ``(1 − s)³/6``,
+    ``(3s³ − 6s² + 4)/6``, ``(−3s³ + 3s² + 3s + 1)/6``, ``s³/6``; the last span holds the
+    interval's end. Same values as ``scipy.interpolate.BSpline.design_matrix`` on the knots
+    ``start + spacing · (−3 … spans + 3)`` (tests/inversion/test_surface.py), without its
+    search and sort.
+
+    Returns
+    -------
+    cols : ndarray of int64, shape (n, 4)
+    weights : ndarray, shape (n, 4)
+    count : int
+        Basis functions (columns) in all.
+    """
     spans = max(1, int(math.ceil((stop - start) / spacing - 1e-9)))
-    t = start + spacing * np.arange(-degree, spans + degree + 1, dtype=np.float64)
-    pts = np.clip(np.asarray(points, np.float64), t[degree], t[spans + degree])
-    return BSpline.design_matrix(pts, t, degree).tocsr()
+    u = np.clip((np.asarray(points, np.float64) - start) / spacing, 0.0, spans)
+    span = np.minimum(np.floor(u), spans - 1)
+    s = u - span
+    s2 = s * s
+    s3 = s2 * s
+    weights = np.stack(
+        [(1.0 - s) ** 3, 3.0 * s3 - 6.0 * s2 + 4.0, -3.0 * s3 + 3.0 * s2 + 3.0 * s + 1.0, s3],
+        axis=-1,
+    )
+    weights /= 6.0
+    cols = span.astype(np.int64)[:, None] + np.arange(4)
+    return cols, weights, spans + 3
 
 
 def knot_centres(start: float, stop: float, spacing: float) -> np.ndarray:
@@ -87,22 +119,13 @@ def tensor_basis(
     scipy.sparse.csr_matrix, shape (n, ky·kx)
     """
     y0, y1, x0, x1 = extent
-    by = bspline_basis(y, y0, y1, spacing).tocoo()
-    bx = bspline_basis(x, x0, x1, spacing).tocoo()
-    kx = bx.shape[1]
-    n = len(y)
-    # every row of a cubic design matrix holds 4 weights; sort them by row to pair them up
-    ay = np.lexsort((by.col, by.row))
-    ax = np.lexsort((bx.col, bx.row))
-    if by.nnz != 4 * n or bx.nnz != 4 * n:
-        raise AssertionError("a cubic B-spline row must hold 4 weights")
-    cy, vy = by.col[ay].reshape(n, 4), by.data[ay].reshape(n, 4)
-    cx, vx = bx.col[ax].reshape(n, 4), bx.data[ax].reshape(n, 4)
+    cy, vy, ky = cubic_rows(y, y0, y1, spacing)
+    cx, vx, kx = cubic_rows(x, x0, x1, spacing)
+    n = cy.shape[0]
     cols = (cy[:, :, None] * kx + cx[:, None, :]).reshape(n, 16)
     vals = (vy[:, :, None] * vx[:, None, :]).reshape(n, 16)
     indptr = np.arange(0, 16 * n + 1, 16)
-    shape = (n, by.shape[1] * kx)
-    return sparse.csr_matrix((vals.ravel(), cols.ravel(), indptr), shape=shape)
+    return sparse.csr_matrix((vals.ravel(), cols.ravel(), indptr), shape=(n, ky * kx))
 
 
 @dataclass(frozen=True)

@@ -308,6 +308,9 @@ def _setup(lines, looks, z_knot, r_knot, levels, finest=1):
     from ..priors import estimate_looks
 
     check_lines(lines)
+    if isinstance(finest, bool) or not float(finest).is_integer() or finest < 1:
+        raise SonarRasterError(f"finest must be a whole number of 1 or more, not {finest!r}")
+    finest = int(finest)
     prepared = []
     for line in lines:
         images = {n: check_slant(v, line.range_bin, min_pings=2) for n, v in line.sides.items()}
