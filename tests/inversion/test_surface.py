@@ -403,9 +403,9 @@ def test_cli_surface_method_writes_both_sides_with_their_std(tmp_path):
 
 def test_a_coarser_fit_comes_out_level_at_every_ping_and_bin():
     """``finest=2`` fits the images pooled 2 × 2 and returns Z and its std at every ping and
-    ground cell of the images. The first-return anchor keeps its σ in the images' own bins at
-    every level: measured +1.4 cm (rms 1.6 cm) on a flat seabed a quarter bin in; with σ in the
-    pooled bins the coarse level settles +3.7 cm high."""
+    ground cell of the images. At the finest level fitted the first-return anchor's σ is in the
+    images' own bins: measured +1.4 cm (rms 1.6 cm) on a flat seabed a quarter bin in; with σ
+    in that level's pooled bins it settles +3.8 cm high."""
     alt = 6.0125
     fit = surface.fit_surface(_flat_render(alt), 0.05, ping_spacing=0.1, finest=2)
     assert fit.altitude.shape == (60,)

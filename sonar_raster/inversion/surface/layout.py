@@ -232,7 +232,7 @@ class View:
     br: sparse.csr_matrix  # (pings·cells, nr)
     nadir: sparse.csr_matrix  # (pings, nz): Z at each ping's nadir
     points: tuple[np.ndarray, np.ndarray]  # frame (y, X) of each cell, (pings, cells) each
-    tracked_bin: float  # the line's own range bin, in which its first return was tracked
+    anchor_bin: float  # the bin the first-return anchor's σ counts in (Problem.anchor_std)
 
     @property
     def shape(self) -> tuple[int, int]:

@@ -34,9 +34,9 @@ BEAM_WEIGHT = 10.0
 #: Standard deviation of log Φ about a calibrated beam profile's shape, per node (0.02: about
 #: 0.1 dB, a calibration's own spread; its level stays free per side).
 CALIBRATED_BEAM_STD = 0.02
-#: Standard deviation of the first-return altitude per ping, in the images' own range bins (at
-#: every level: the tracker ran on them): the bottom tracker's own error on a single look (a
-#: phase bias of up to a third of a bin); its reading of a rough seabed's crests is taken off
+#: Standard deviation of the first-return altitude per ping, in range bins (the images' own at
+#: the finest level fitted, pooled above it): the bottom tracker's own error on a single look
+#: (a phase bias of up to a third of a bin); its reading of a rough seabed's crests is taken off
 #: first (``solve.CREST_OFFSET``).
 ANCHOR_BINS = 0.25
 #: Standard deviation of the relief about the flat seabed at the first return, metres (None:
@@ -351,8 +351,8 @@ class Problem:
         return total
 
     def anchor_std(self, view: View) -> float:
-        """Standard deviation of the first-return altitude, metres (in its own bins: any level)."""
-        return ANCHOR_BINS * view.tracked_bin
+        """Standard deviation of the first-return altitude, metres."""
+        return ANCHOR_BINS * view.anchor_bin
 
     def _anchor(self, zc: np.ndarray) -> tuple[float, np.ndarray]:
         """Each line's nadir at its first-return altitude (less its crests) below the transducer."""

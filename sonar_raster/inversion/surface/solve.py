@@ -198,9 +198,8 @@ def fit_lines(
     finest : int
         Pooling of the finest level fitted: 1 (default) fits the images as they are; 2 or 4
         stop at the images pooled 2 × 2 or 4 × 4 (knots that much wider), about 4 or 16 times
-        faster; the products still come at every ping and bin, from the wider knots. On
-        single-look speckle 2 scores as well as 1 on smooth seabeds and loses objects' edges
-        (docs/inversion.md, "Coarser fits").
+        faster; the products still come at every ping and bin, from the wider knots. What it
+        costs in accuracy: docs/inversion.md, "Coarser fits".
     max_iter : int
         Most L-BFGS iterations per level where the fit is plain L-BFGS
         (``GAUSS_NEWTON_STEPS = 0``).
@@ -227,7 +226,7 @@ def fit_lines(
     previous: Problem | None = None
     energies, evaluations = [], []
     for f, grid in grids:
-        problem = _level(prepared, frame, grid, f)
+        problem = _level(prepared, frame, grid, f, finest)
         if beam:
             problem.beam_reference = beam_reference(grid, beam)
             calibrated = (CALIBRATED_LINE_WEIGHT, CALIBRATED_LINE_SCALE)
@@ -410,8 +409,8 @@ def _extent(prepared, frame: Frame) -> tuple[tuple[float, float, float, float], 
     return (y0, y1, float(x.min()), float(x.max())), (lo, hi, nodes)
 
 
-def _level(prepared, frame: Frame, grid: Grid, f: int) -> Problem:
-    """Every view at pooling ``f``, and the problem over them."""
+def _level(prepared, frame: Frame, grid: Grid, f: int, finest: int = 1) -> Problem:
+    """Every view at pooling ``f`` (``finest``: the finest level's), and the problem over them."""
     from ..ground import ground_axis
 
     views = []
@@ -458,7 +457,9 @@ def _level(prepared, frame: Frame, grid: Grid, f: int) -> Problem:
                     br=tensor_basis(y_pts.ravel(), x_pts.ravel(), grid.extent, grid.r_spacing),
                     nadir=tensor_basis(ny, nx, grid.extent, grid.z_spacing),
                     points=(y_pts, x_pts),
-                    tracked_bin=line.range_bin,
+                    # the images' own bin at the finest level fitted (their tracker's error),
+                    # pooled like the rest above it
+                    anchor_bin=line.range_bin * f / finest,
                 )
             )
     ky, kx = (len(k) for k in grid.knots("z"))
