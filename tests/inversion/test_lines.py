@@ -208,16 +208,18 @@ def test_surface_lines_land_in_place_and_combine_by_inverse_variance(
 
 
 def test_one_xtf_with_method_surface_grids_its_std(survey, tmp_path, capsys, monkeypatch):
-    """One file with ``--method surface`` (it used to run the profiles silently): the fit's
-    elevation and std (here the stand-in's truth and 0.1 m) are gridded beside the others."""
+    """One file with ``--method surface`` (it used to run the profiles silently; ``--coarsen``
+    passed on): the fit's elevation and std (here the stand-in's truth and 0.1 m) are gridded
+    beside the others."""
     from sonar_raster.inversion import surface
 
     calls: list = []
     monkeypatch.setattr(surface, "invert_lines", _truth_line(calls))
     out = tmp_path / "one"
     argv = ["invert", str(survey[0]), "-o", str(out), "--method", "surface", "--no-mesh"]
-    assert main([*argv, "--no-previews", "-q"]) == 0, capsys.readouterr().err
+    assert main([*argv, "--no-previews", "--coarsen", "2", "-q"]) == 0, capsys.readouterr().err
     assert len(calls) == 1
+    assert calls[0]["finest"] == 2  # --coarsen reaches the fit of an XTF line
     z, transform, _, _ = _read_tif(out / "elevation.tif")
     east, north = _grid(z, transform)
     mx, my, h, s = MOUND
