@@ -62,6 +62,30 @@ def test_gradient_matches_central_differences(lines):
         assert grad[i] == pytest.approx(numeric, rel=2e-3, abs=1e-3 * (1 + abs(numeric)))
 
 
+@pytest.mark.parametrize(("lines", "deposit"), [(1, "tent"), (2, "tent"), (1, "segment")])
+def test_the_held_z_objective_equals_the_problems(monkeypatch, lines, deposit):
+    """The Gauss-Newton steps' inner objective (Z held, the model image linear in R Φ) against
+    the full objective at R and Φ moved away from where it was made: the same value and
+    gradient wrt log R and log Φ, none wrt Z; every prior on R and Φ acting, shadows cast."""
+    monkeypatch.setattr(solve, "DEPOSIT", deposit)
+    problem, p, rng = _problem(4, lines=lines)
+    held = np.zeros(problem.grid.nodes)
+    held[1:-2] = 1.0
+    problem.beam_reference = {"port": (rng.normal(0.0, 0.3, held.size) * held, held)}
+    p[problem.nz : problem.nz + problem.nr] += 0.5  # the gauge acts
+    objective = problem.held_z(p)
+    q = p.copy()
+    q[problem.nz :] += rng.normal(0.0, 0.2, problem.size - problem.nz)
+    value, grad = objective(q)
+    expected, expected_grad = problem(q)
+    assert value == pytest.approx(expected, rel=1e-11)
+    assert not grad[: problem.nz].any()
+    free = slice(problem.nz, None)
+    np.testing.assert_allclose(
+        grad[free], expected_grad[free], rtol=1e-8, atol=1e-10 * abs(grad).max()
+    )
+
+
 def test_the_anchor_offset_is_the_crests_the_data_confirm():
     """The first return reads a rough seabed's crests: the tracker on the model's own image
     reads above its level, and that gap comes off the tracked altitude as far as the data's
@@ -177,7 +201,8 @@ def test_prior_gradients_match_central_differences_everywhere(lines):
 
     def priors(q):
         grad = np.zeros_like(q)
-        value = problem._priors(*problem.split(q), grad)
+        zc, rc, lphi = problem.split(q)
+        value = problem.z_priors(zc, grad) + problem.reflectivity_beam_priors(rc, lphi, grad)
         return value, grad
 
     _, grad = priors(p)
@@ -350,6 +375,47 @@ def test_multigrid_preconditions_the_gauss_newton_matrix(monkeypatch):
         counts[name] = len(steps)
     print("CG iterations to 1e-9:", counts)  # pytest -s shows them
     assert counts["multigrid"] * 3 < counts["diagonal"], counts
+
+
+def test_the_line_prior_deflation_solves_its_directions_exactly():
+    """The steps' preconditioner with the line-profile prior's strongest directions ``Q``
+    solved exactly: on them it inverts the whole Gauss-Newton matrix ``A`` (``M⁻¹ A Q c = Q c``,
+    which fails with a wrong ``Qᵀ H Q``), it is symmetric and positive, and CG with it reaches
+    ``A``'s exact solution in fewer iterations than with the plain preconditioner (two
+    overlapping lines: 9 against 20 to 1e-9, printed with ``pytest -s``)."""
+    from scipy import sparse
+    from scipy.sparse.linalg import LinearOperator, cg
+
+    problem, p, rng = _problem(0, lines=2)
+    problem.flat = p[: problem.nz].reshape(problem.kz)
+    h = solve._fisher_z(problem, p)
+    lhs = (h + sparse.diags(1e-3 * h.diagonal())).tocsc()
+    nz = problem.nz
+    matvec = functools.partial(solve._gn_matvec, problem, lhs)
+    plain = solve._preconditioner(lhs)
+    deflated = solve._deflated(problem, lhs, plain)
+    q = problem.line_subspace()[0]
+    assert 0 < q.shape[1] < nz
+    c = rng.normal(size=q.shape[1])
+    np.testing.assert_allclose(deflated(matvec(q @ c)), q @ c, rtol=0, atol=1e-8 * abs(q @ c).max())
+    u, v = rng.normal(size=(2, nz))
+    assert u @ deflated(v) == pytest.approx(v @ deflated(u), rel=1e-8)
+    assert u @ deflated(u) > 0
+    a = np.column_stack([matvec(e) for e in np.eye(nz)])
+    b = rng.normal(size=nz)
+    exact = np.linalg.solve(a, b)
+    counts = {}
+    for name, apply in (("deflated", deflated), ("plain", plain)):
+        steps = []
+        x, info = cg(
+            LinearOperator((nz, nz), matvec=matvec), b, M=LinearOperator((nz, nz), matvec=apply),
+            rtol=1e-9, maxiter=500, callback=steps.append,
+        )  # fmt: skip
+        assert info == 0
+        np.testing.assert_allclose(x, exact, rtol=0, atol=1e-7 * np.abs(exact).max())
+        counts[name] = len(steps)
+    print("CG iterations to 1e-9:", counts)
+    assert counts["deflated"] * 1.5 < counts["plain"], counts
 
 
 def test_a_flat_seabed_comes_out_level_with_the_multigrid_steps(monkeypatch):

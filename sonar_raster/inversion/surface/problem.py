@@ -10,15 +10,49 @@ plus the noise floor. Its fit to the data is the L-look Gamma likelihood of spec
 
 from __future__ import annotations
 
+import functools
 import math
-from collections.abc import Mapping, Sequence
+import os
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
 from scipy import ndimage, sparse
 
-from ..model import adjoint, forward
+from ..model import adjoint, deposit_matrix, forward
 from .layout import View, bspline_basis, knot_centres
+
+#: Threads the fit works on (the views of a problem side by side, the uncertainty's blocks):
+#: numpy's arithmetic and scipy's sparse products and triangular solves release the GIL.
+THREADS = max(
+    1,
+    min(
+        len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1),
+        4,
+    ),
+)
+
+_T = TypeVar("_T")
+_U = TypeVar("_U")
+
+
+@functools.cache
+def _pool(threads: int) -> ThreadPoolExecutor:
+    return ThreadPoolExecutor(threads, thread_name_prefix="surface")
+
+
+def each(func: Callable[[_T], _U], items: Iterable[_T]) -> list[_U]:
+    """``[func(item) for item in items]`` on up to :data:`THREADS` threads, in order.
+
+    ``func`` must not call :func:`each` itself (the threads would wait on one another).
+    """
+    items = list(items)
+    if THREADS <= 1 or len(items) <= 1:
+        return [func(item) for item in items]
+    return list(_pool(THREADS).map(func, items))
+
 
 #: Standard deviations of the seabed's curvature across and along track assumed by the prior
 #: on Z, 1/m (in data units: that curvature costs one nat per knot and look).
@@ -51,6 +85,10 @@ SHADOW_GROUND_BINS = 1.0
 LINE_PROFILE_WEIGHT = 1.0
 #: Across-track scale of that prior's low-pass, as a fraction of the altitude.
 LINE_PROFILE_SCALE = 0.25
+#: The line-profile prior's directions the Gauss-Newton steps solve exactly
+#: (:meth:`Problem.line_subspace`): those whose low-pass gain² is above this fraction of the
+#: largest.
+LINE_SUBSPACE_GAIN = 1e-5
 
 
 @dataclass(frozen=True)
@@ -117,6 +155,7 @@ class Problem:
         ky, kx = (len(k) for k in grid.knots("z"))
         self.kz = (ky, kx)
         self._line_operators: list[tuple] | None = None
+        self._line_subspace: tuple[np.ndarray, np.ndarray] | None = None
         self._line_prior: dict[str, tuple[float, float]] = {}
         self.objects = np.zeros(self.kz)
         self.shadowed = np.zeros(self.kz)
@@ -158,6 +197,7 @@ class Problem:
     def objects(self, value: np.ndarray) -> None:
         self._objects = value
         self._line_operators = None  # the line profile's average leaves the objects out
+        self._line_subspace = None
 
     @property
     def line_prior(self) -> dict[str, tuple[float, float]]:
@@ -172,6 +212,7 @@ class Problem:
     def line_prior(self, value: dict[str, tuple[float, float]]) -> None:
         self._line_prior = dict(value)
         self._line_operators = None
+        self._line_subspace = None
 
     def line_operators(self) -> list[tuple[sparse.csr_matrix, np.ndarray, float, float]]:
         """Per view, what :func:`line_profile` needs, made once per set of objects.
@@ -210,6 +251,33 @@ class Problem:
                 ops.append((average, nadir, sigma, w))
             self._line_operators = ops
         return self._line_operators
+
+    def line_subspace(self) -> tuple[np.ndarray, np.ndarray]:
+        """The directions of the Z knots the line-profile prior weighs most, and its Hessian there.
+
+        Returns ``(Q, Qᵀ H Q)``: ``Q`` (nz, k) orthonormal, ``H`` the prior's Hessian
+        ``Σ 2w Bᵀ Gᵀ G B`` (``B`` a view's line average less its nadir, ``G`` the low-pass).
+        ``Q`` spans ``Bᵀ v`` for the eigenvectors ``v`` of ``Gᵀ G`` with eigenvalues above
+        :data:`LINE_SUBSPACE_GAIN` of the largest: a few per low-pass width across the swath
+        (the along-track mean of the relief, per range), where ``H`` dwarfs the image's own
+        curvature. Made once per set of objects, like :meth:`line_operators`.
+        """
+        if self._line_subspace is None:
+            columns = []
+            for average, nadir, sigma, _ in self.line_operators():
+                cells = average.shape[0]
+                low = ndimage.gaussian_filter1d(np.eye(cells), sigma, axis=0, mode="constant")
+                gains, vectors = np.linalg.eigh(low.T @ low)
+                v = vectors[:, gains > LINE_SUBSPACE_GAIN * gains.max()]
+                columns.append(np.asarray(average.T @ v) - np.outer(nadir, v.sum(axis=0)))
+            q = np.linalg.qr(np.hstack(columns))[0] if columns else np.zeros((self.nz, 0))
+            qhq = np.zeros((q.shape[1], q.shape[1]))
+            for average, nadir, sigma, w in self.line_operators():
+                bq = np.asarray(average @ q) - (nadir @ q)[None, :]
+                gbq = ndimage.gaussian_filter1d(bq, sigma, axis=0, mode="constant")
+                qhq += 2.0 * w * (gbq.T @ gbq)
+            self._line_subspace = (q, qhq)
+        return self._line_subspace
 
     def relief_weights(self) -> np.ndarray | None:
         """Per Z knot, the weight of ``(Z − flat)²`` in the priors, (ky, kx); None if none.
@@ -305,15 +373,17 @@ class Problem:
             g_z += view.bz.T @ (gz + gphi * beam.dz).ravel()
             g_r += view.br.T @ (gr * r).ravel()
             grad[self.phi_slice(view.side)] += self.beam_gradient(beam, gphi)
-        total += self._priors(zc, rc, lphi, grad)
+        total += self.z_priors(zc, grad) + self.reflectivity_beam_priors(rc, lphi, grad)
         return total, grad
 
-    def _priors(
-        self, zc: np.ndarray, rc: np.ndarray, lphi: Mapping[str, np.ndarray], grad: np.ndarray
-    ) -> float:
+    def held_z(self, p: np.ndarray) -> HeldZ:
+        """The objective as a function of log R and log Φ alone, Z held at ``p``'s knots."""
+        return HeldZ(self, p)
+
+    def z_priors(self, zc: np.ndarray, grad: np.ndarray) -> float:
+        """The priors on the Z knots; their gradient added to ``grad``'s Z part."""
         grid = self.grid
         g_zc = grad[: self.nz].reshape(self.kz)
-        g_rc = grad[self.nz : self.nz + self.nr].reshape(self.kr)
         total = 0.0
         for axis, w in ((0, self.w_z_along), (1, self.w_z)):
             value, g = second_difference(zc, axis, grid.z_spacing, w)
@@ -331,6 +401,14 @@ class Problem:
         value, g = self._anchor(zc)
         total += value
         g_zc += g.reshape(self.kz)
+        return total
+
+    def reflectivity_beam_priors(
+        self, rc: np.ndarray, lphi: Mapping[str, np.ndarray], grad: np.ndarray
+    ) -> float:
+        """The priors on log R and log Φ; their gradient added to ``grad``'s parts."""
+        g_rc = grad[self.nz : self.nz + self.nr].reshape(self.kr)
+        total = 0.0
         for axis in (0, 1):
             value, g = charbonnier(rc, axis, REFLECTIVITY_EDGE, self.w_r)
             total += value
@@ -338,7 +416,7 @@ class Problem:
         mean = float(np.mean(rc))
         total += self.w_gauge * mean * mean
         g_rc += 2.0 * self.w_gauge * mean / rc.size
-        for side in grid.sides:
+        for side in self.grid.sides:
             value, g = second_difference(lphi[side], 0, 1.0, self.w_phi)
             total += value
             grad[self.phi_slice(side)] += g
@@ -366,6 +444,68 @@ class Problem:
             w = 1.0 / (2.0 * self.anchor_std(view) ** 2)
             total += w * float(np.sum(res * res))
             grad += view.nadir.T @ (2.0 * w * res)
+        return total, grad
+
+
+class HeldZ:
+    """A problem's objective over log R and log Φ with its Z knots held: the same numbers.
+
+    It serves the Gauss-Newton steps' inner minimisation, and is faster than the problem's.
+    With Z held, each view's model image is linear in ``a = R Φ`` per cell: ``μ = A a +
+    floor`` with ``A`` the deposit (:func:`..model.deposit_matrix`) times each cell's ``q``
+    and cast-shadow factor, made once; Φ's nodes and weights per cell are fixed too. An
+    evaluation is then two sparse products per view, without the geometry, the shadows or
+    the priors on Z (a constant, added to the value). Called with a full parameter vector
+    whose Z part equals the held one; the gradient's Z part is zero.
+    """
+
+    def __init__(self, problem: Problem, p: np.ndarray) -> None:
+        self.problem = problem
+        self.norm = problem.norm
+        self.size = problem.size
+        zc, _, lphi = problem.split(p)
+
+        def one(view: View) -> tuple:
+            z = problem.z_of(view, zc)
+            beam = problem.beam(view, lphi[view.side], z)
+            shade = soft_shadow(z, view.geom.x, view.tau)[0]
+            deposit, q = deposit_matrix(z, view.geom)
+            scale = (q * shade).ravel() * (view.geom.dx / view.geom.range_bin)
+            a = (deposit @ sparse.diags(scale)).tocsr()
+            return view, a, a.T.tocsr(), beam.index, beam.weight
+
+        self.parts = each(one, problem.views)
+        self.constant = problem.z_priors(zc, np.zeros(problem.size))
+
+    def __call__(self, p: np.ndarray) -> tuple[float, np.ndarray]:
+        """Objective and its gradient (zero wrt Z) at ``p``, whose Z must be the held Z."""
+        problem = self.problem
+        _, rc, lphi = problem.split(p)
+        n = problem.grid.nodes
+
+        def one(part: tuple) -> tuple[float, np.ndarray, np.ndarray]:
+            view, a, a_t, index, w = part
+            side = lphi[view.side]
+            low = side[index]
+            energy = np.exp(low + w * (side[index + 1] - low))  # Φ
+            energy *= np.exp(np.asarray(view.br @ rc.ravel()).reshape(view.shape))  # R Φ
+            mu = np.asarray(a @ energy.ravel()).reshape(view.image.shape) + view.floor
+            ratio = view.image / mu
+            value = view.looks * float(np.sum(np.where(view.mask, ratio + np.log(mu), 0.0)))
+            g_mu = np.where(view.mask, view.looks * (1.0 - ratio) / mu, 0.0)
+            # ∂E/∂log R = ∂E/∂log Φ = ∂E/∂a · a per cell
+            g = np.asarray(a_t @ g_mu.ravel()).reshape(view.shape) * energy
+            g_phi = np.bincount(index.ravel(), ((1.0 - w) * g).ravel(), n)
+            g_phi += np.bincount(index.ravel() + 1, (w * g).ravel(), n)
+            return value, view.br.T @ g.ravel(), g_phi
+
+        grad = np.zeros_like(p)
+        total = self.constant
+        for part, (value, g_r, g_phi) in zip(self.parts, each(one, self.parts), strict=True):
+            total += value
+            grad[problem.nz : problem.nz + problem.nr] += g_r
+            grad[problem.phi_slice(part[0].side)] += g_phi
+        total += problem.reflectivity_beam_priors(rc, lphi, grad)
         return total, grad
 
 

@@ -8,7 +8,6 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from functools import partial
 from typing import TYPE_CHECKING
@@ -30,7 +29,7 @@ from .layout import (
     pool_image,
     tensor_basis,
 )
-from .problem import Grid, Problem, flat_start_knots, line_profile, soft_shadow
+from .problem import Grid, Problem, each, flat_start_knots, line_profile, soft_shadow
 
 if TYPE_CHECKING:
     from ..solver import BeamProfile
@@ -63,6 +62,11 @@ MAX_LOOKS = 30.0
 GAUSS_NEWTON_STEPS = 8
 #: L-BFGS iterations on R and Φ after each Gauss-Newton step.
 INNER_ITERATIONS = 20
+#: Relative residual to which each Gauss-Newton step's conjugate gradients solve (at most 30
+#: iterations): an inexact step, as the next one corrects it; at 1000 pings x 2000 bins per
+#: side pooled 4 x 4 a third of the iterations of 1e-5 where the solve converges
+#: (docs/notes/2026-11-28-fit-speed.md).
+GAUSS_NEWTON_RTOL = 1e-3
 #: A restart of L-BFGS after its line search failed must lower E by this much (E is divided by
 #: looks × bins, so per bin) for another restart.
 RESTART_GAIN = 1e-6
@@ -258,7 +262,9 @@ def fit_lines(
             f"uncertainty of Z: {LAPLACE_SAMPLES} samples of {previous.nz + previous.nr} knots"
         )
     # the products at every ping and bin, from the knots of the finest level fitted
-    full = previous if finest == 1 else _level(prepared, frame, previous.grid, 1)
+    full = (
+        previous if finest == 1 else _level(prepared, frame, previous.grid, 1, flat=previous.flat)
+    )
     std = elevation_std(previous, params, cells=full) if uncertainty else {}
     if progress is not None:
         progress(f"done in {time.perf_counter() - start:.0f} s")
@@ -409,8 +415,14 @@ def _extent(prepared, frame: Frame) -> tuple[tuple[float, float, float, float], 
     return (y0, y1, float(x.min()), float(x.max())), (lo, hi, nodes)
 
 
-def _level(prepared, frame: Frame, grid: Grid, f: int, finest: int = 1) -> Problem:
-    """Every view at pooling ``f`` (``finest``: the finest level's), and the problem over them."""
+def _level(
+    prepared, frame: Frame, grid: Grid, f: int, finest: int = 1, flat: np.ndarray | None = None
+) -> Problem:
+    """Every view at pooling ``f`` (``finest``: the finest level's), and the problem over them.
+
+    ``flat``: the flat seabed's knots where they are known (the products' problem on the
+    fitted grid), else made from the views' first returns.
+    """
     from ..ground import ground_axis
 
     views = []
@@ -433,6 +445,10 @@ def _level(prepared, frame: Frame, grid: Grid, f: int, finest: int = 1) -> Probl
             x = ground_axis(h, rb, bins, rb)
             geom = Geometry(x, rb, dy, rb, bins, SUBSAMPLES, DEPOSIT)
             y_pts, x_pts = cell_points(frame, position, heading, side, x)
+            bz = tensor_basis(y_pts.ravel(), x_pts.ravel(), grid.extent, grid.z_spacing)
+            br = bz
+            if grid.r_spacing != grid.z_spacing:
+                br = tensor_basis(y_pts.ravel(), x_pts.ravel(), grid.extent, grid.r_spacing)
             ny, nx = frame.to_frame(position)
             centres = (np.arange(bins) + 0.5) * rb
             first = centres[None, :] >= 0.9 * h[:, None]
@@ -453,8 +469,8 @@ def _level(prepared, frame: Frame, grid: Grid, f: int, finest: int = 1) -> Probl
                     tau=float(np.nanmedian(h)) * rb / np.maximum(x, rb) ** 2,
                     altitude=h,
                     height=pool(height, f),
-                    bz=tensor_basis(y_pts.ravel(), x_pts.ravel(), grid.extent, grid.z_spacing),
-                    br=tensor_basis(y_pts.ravel(), x_pts.ravel(), grid.extent, grid.r_spacing),
+                    bz=bz,
+                    br=br,
                     nadir=tensor_basis(ny, nx, grid.extent, grid.z_spacing),
                     points=(y_pts, x_pts),
                     # the images' own bin at the finest level fitted (their tracker's error),
@@ -462,8 +478,10 @@ def _level(prepared, frame: Frame, grid: Grid, f: int, finest: int = 1) -> Probl
                     anchor_bin=line.range_bin * f / finest,
                 )
             )
-    ky, kx = (len(k) for k in grid.knots("z"))
-    return Problem(views, grid, flat_start_knots(views, grid, (ky, kx)))
+    if flat is None:
+        ky, kx = (len(k) for k in grid.knots("z"))
+        flat = flat_start_knots(views, grid, (ky, kx))
+    return Problem(views, grid, flat)
 
 
 def _start(problem: Problem) -> np.ndarray:
@@ -589,17 +607,23 @@ def _transfer(old: Problem, p: np.ndarray, new: Problem) -> np.ndarray:
 
 
 def _minimise(
-    problem: Problem, p: np.ndarray, max_iter: int, free: np.ndarray | None = None
+    problem: Problem,
+    p: np.ndarray,
+    max_iter: int,
+    free: np.ndarray | None = None,
+    objective: Callable[[np.ndarray], tuple[float, np.ndarray]] | None = None,
 ) -> tuple[np.ndarray, float, int]:
+    """L-BFGS on the ``free`` parameters of ``objective`` (default the problem's own)."""
     keep = np.ones(p.size, bool) if free is None else free
     scale = problem.scales()[keep]
     norm = problem.norm
     base = p.copy()
+    evaluate = problem if objective is None else objective
 
     def fun(q: np.ndarray) -> tuple[float, np.ndarray]:
         full = base.copy()
         full[keep] = q * scale
-        value, grad = problem(full)
+        value, grad = evaluate(full)
         if not np.isfinite(value):
             return math.inf, np.zeros_like(q)
         return value / norm, grad[keep] * scale / norm
@@ -695,10 +719,10 @@ def elevation_std(
 
 def draws_std(problem: Problem, knots: np.ndarray) -> dict[tuple[int, str], np.ndarray]:
     """Per view (line, side), each cell's standard deviation of Z over drawn Z knots (nz, k)."""
-    return {
-        (v.line, v.side): np.std(np.asarray(v.bz @ knots), axis=1, ddof=1).reshape(v.shape)
-        for v in problem.views
-    }
+    spread = each(
+        lambda v: np.std(np.asarray(v.bz @ knots), axis=1, ddof=1).reshape(v.shape), problem.views
+    )
+    return {(v.line, v.side): s for v, s in zip(problem.views, spread, strict=True)}
 
 
 def laplace_draws(
@@ -750,17 +774,26 @@ def _symmetric_solver(h: sparse.csc_matrix, nz: int) -> Callable[[np.ndarray], n
     if n == nz:
         return splu(h, **SYMMETRIC_LU).solve
     diagonal = (h[:nz, :nz].tocsc(), h[nz:, nz:].tocsc())
-    with ThreadPoolExecutor(2) as pool:  # SuperLU's factorisation releases the GIL
-        blocks = list(pool.map(lambda block: spilu(block, **BLOCK_ILU, **SYMMETRIC_LU), diagonal))
+    # SuperLU's factorisation and solves and the sparse products release the GIL: the two
+    # blocks, and the product's two halves of rows, side by side
+    blocks = each(lambda block: spilu(block, **BLOCK_ILU, **SYMMETRIC_LU), diagonal)
 
     def precondition(v: np.ndarray) -> np.ndarray:
-        return np.concatenate([blocks[0].solve(v[:nz]), blocks[1].solve(v[nz:])])
+        parts = ((blocks[0], v[:nz]), (blocks[1], v[nz:]))
+        return np.concatenate(each(lambda part: part[0].solve(part[1]), parts))
 
-    return partial(_block_cg, h.tocsr(), precondition, 1e-3, 200)
+    h = h.tocsr()
+    half = h.shape[0] // 2
+    rows = (h[:half], h[half:])
+
+    def product(d: np.ndarray) -> np.ndarray:
+        return np.concatenate(each(lambda part: np.asarray(part @ d), rows))
+
+    return partial(_block_cg, product, precondition, 1e-3, 200)
 
 
 def _block_cg(
-    h: sparse.csr_matrix,
+    h: Callable[[np.ndarray], np.ndarray],
     precondition: Callable[[np.ndarray], np.ndarray],
     rtol: float,
     maxiter: int,
@@ -770,7 +803,7 @@ def _block_cg(
 
     Each column runs the textbook recursion (its own step lengths, stopping when its residual
     is below ``rtol`` of its right-hand side, as ``scipy.sparse.linalg.cg``); the columns still
-    running share one sparse product and one preconditioner call (the LU factors' triangular
+    running share one product ``h(d)`` and one preconditioner call (the LU factors' triangular
     solves take many right-hand sides at once) per iteration.
     """
     x = np.zeros_like(b)
@@ -792,7 +825,7 @@ def _block_cg(
             )
         if live.size == 0:
             break
-        hd = np.asarray(h @ d)
+        hd = h(d)
         alpha = rz / np.einsum("ij,ij->j", d, hd)
         if live.size == x.shape[1]:
             x += alpha * d
@@ -984,6 +1017,36 @@ def _preconditioner(lhs: sparse.csc_matrix) -> Callable[[np.ndarray], np.ndarray
     return hierarchy.aspreconditioner(cycle="V").matvec
 
 
+def _deflated(
+    problem: Problem, lhs: sparse.csc_matrix, precondition: Callable[[np.ndarray], np.ndarray]
+) -> Callable[[np.ndarray], np.ndarray]:
+    """``precondition`` (for ``lhs``) made one for the Gauss-Newton matrix with the line prior.
+
+    The line-profile prior adds ``H`` of low rank but large to ``lhs``: a preconditioner for
+    ``lhs`` alone leaves the conjugate gradients a few tens of outlying eigenvalues to find,
+    one iteration each. On its strongest directions ``Q`` (:meth:`.Problem.line_subspace`) the
+    system is solved exactly, the rest preconditioned as before (the balancing preconditioner
+    ``M⁻¹ = P + (I − P A) M₀⁻¹ (I − A P)``, ``P = Q (Qᵀ A Q)⁻¹ Qᵀ``, ``A = lhs + H``;
+    symmetric positive definite when ``M₀`` is).
+    """
+    from scipy.linalg import cho_factor, cho_solve
+
+    if problem.w_line <= 0:
+        return precondition
+    q, qhq = problem.line_subspace()
+    if q.shape[1] == 0:
+        return precondition
+    coarse = cho_factor(q.T @ np.asarray(lhs @ q) + qhq)
+    matvec = partial(_gn_matvec, problem, lhs)
+
+    def apply(r: np.ndarray) -> np.ndarray:
+        exact = q @ cho_solve(coarse, q.T @ r)
+        rest = precondition(r - matvec(exact))
+        return exact + rest - q @ cho_solve(coarse, q.T @ matvec(rest))
+
+    return apply
+
+
 def _gn_matvec(problem: Problem, lhs: sparse.csc_matrix, v: np.ndarray) -> np.ndarray:
     out = np.asarray(lhs @ v)
     if problem.w_line > 0:
@@ -1019,8 +1082,8 @@ def _gauss_newton(
         diag = h.diagonal()
         lhs = (h + sparse.diags(damping * diag + 1e-12 * diag.mean())).tocsc()
         op = LinearOperator((nz, nz), matvec=partial(_gn_matvec, problem, lhs))
-        pre = LinearOperator((nz, nz), matvec=_preconditioner(lhs))
-        step, _ = cg(op, -grad[:nz], M=pre, maxiter=30)
+        pre = LinearOperator((nz, nz), matvec=_deflated(problem, lhs, _preconditioner(lhs)))
+        step, _ = cg(op, -grad[:nz], M=pre, maxiter=30, rtol=GAUSS_NEWTON_RTOL)
         accepted = False
         for t in (1.0, 0.5, 0.25, 0.125):
             q = p.copy()
@@ -1031,7 +1094,7 @@ def _gauss_newton(
                 p, value, grad, accepted = q, trial, g_trial, True
                 break
         damping = damping * 0.3 if accepted else damping * 10.0
-        p, value, n = _minimise(problem, p, INNER_ITERATIONS, free)
+        p, value, n = _minimise(problem, p, INNER_ITERATIONS, free, problem.held_z(p))
         count += n
         if CREST_OFFSET and k + 1 < steps:  # the next step's anchor, at the surface it starts from
             _track_model(problem, p)

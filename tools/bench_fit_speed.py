@@ -1,0 +1,157 @@
+"""Speed of the surface fit at the issue's size, new path against the baseline in one process.
+
+A benchmark, not a test: it prints a table and asserts nothing. It renders one of
+``tools/bench_bathymetry.py``'s seabeds at ``--pings`` pings × ``--bins`` range bins of 5 cm per
+side (single-look speckle, the seabed mesh at 0.1 m cells, 12 m altitude) and fits it with
+``fit_lines(finest=N)`` (``invert --coarsen N``), uncertainty included, once per variant:
+
+- **baseline**: the fit before 2026-11-28 as far as it can be switched back: the inner L-BFGS
+  on R and Φ after each Gauss-Newton step evaluates the whole objective (``Problem.held_z``
+  returning the problem itself), each step's conjugate gradients solve to a relative residual
+  of 1e-5, one thread. (Not switched back: the views' Z and R bases shared where their knots
+  coincide and the products' flat seabed taken from the fit, together ~2 s at this size.)
+- **held Z**, **rtol**, **threads**: the baseline with one change each;
+- **new**: the package as it is.
+
+Per variant: fit seconds (with the uncertainty), seconds in the inner minimisation, in the
+Gauss-Newton conjugate gradients (and their iterations, mean / most), in the uncertainty, Z
+RMSE over the relief std as the bathymetry bench (the fit moves with rounding-level changes,
+so differences below ~0.05 are noise) and the ratio to the baseline's seconds.
+
+Usage: ``python tools/bench_fit_speed.py [--pings 1000] [--bins 2000] [--finest 4]
+[--seabed sand] [--variants baseline,new]``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from contextlib import ExitStack
+from unittest import mock
+
+import bench_bathymetry as bb
+import numpy as np
+import scipy.sparse.linalg as sla
+from _common import parser
+
+from sonar_raster.inversion.bottom import track_bottom
+from sonar_raster.inversion.surface import problem as problem_module
+from sonar_raster.inversion.surface import solve
+from sonar_raster.inversion.surface.layout import Line
+from sonar_raster.sonar import BeamPattern, Sonar
+
+#: What each variant changes from the package as it is.
+VARIANTS = {
+    "baseline": {"held": False, "rtol": 1e-5, "threads": 1},
+    "held Z": {"held": True, "rtol": 1e-5, "threads": 1},
+    "rtol": {"held": False, "rtol": None, "threads": 1},
+    "threads": {"held": False, "rtol": 1e-5, "threads": None},
+    "new": {"held": True, "rtol": None, "threads": None},
+}
+
+
+class _Meter:
+    """Times the inner minimisation, the Gauss-Newton CG and the uncertainty; counts CG."""
+
+    def __init__(self) -> None:
+        self.seconds = {"inner": 0.0, "cg": 0.0, "std": 0.0}
+        self.iterations: list[int] = []
+
+    def timed(self, name: str, original):
+        def wrapped(*args, **kwargs):
+            start = time.perf_counter()
+            try:
+                return original(*args, **kwargs)
+            finally:
+                self.seconds[name] += time.perf_counter() - start
+
+        return wrapped
+
+    def cg(self, original):
+        def wrapped(a, b, **kwargs):
+            steps: list[object] = []
+            start = time.perf_counter()
+            out = original(a, b, callback=steps.append, **kwargs)
+            self.seconds["cg"] += time.perf_counter() - start
+            self.iterations.append(len(steps))
+            return out
+
+        return wrapped
+
+
+def render(seabed: str, pings: int, bins: int):
+    """The bench's seabed and sonar at ``bins`` bins of 5 cm per side and 12 m altitude."""
+    bb.RANGE = bins * bb.BIN
+    bb.ALT = 12.0
+    bb.CELL = 0.1
+    bb.SONAR = Sonar(
+        max_range=bb.RANGE,
+        range_bin=bb.BIN,
+        beam=BeamPattern.gaussian(50.0),
+        tilt=math.radians(20.0),
+        sides=("port", "starboard"),
+    )
+    return bb.render(seabed, pings, 1.0)
+
+
+def run(field, tracks, images, finest: int, variant: dict) -> dict:
+    meter = _Meter()
+    lines = [
+        Line(s, bb.BIN, t.positions[:, :2], t.headings) for t, s in zip(tracks, images, strict=True)
+    ]
+    with ExitStack() as stack:
+        patch = stack.enter_context
+        if not variant["held"]:
+            patch(mock.patch.object(problem_module.Problem, "held_z", lambda self, p: self))
+        if variant["rtol"] is not None:
+            patch(mock.patch.object(solve, "GAUSS_NEWTON_RTOL", variant["rtol"]))
+        if variant["threads"] is not None:
+            patch(mock.patch.object(problem_module, "THREADS", variant["threads"]))
+        patch(mock.patch.object(solve, "_minimise", meter.timed("inner", solve._minimise)))
+        patch(mock.patch.object(solve, "elevation_std", meter.timed("std", solve.elevation_std)))
+        patch(mock.patch.object(sla, "cg", meter.cg(sla.cg)))
+        start = time.perf_counter()
+        fits = solve.fit_lines(lines, finest=finest)
+        seconds = time.perf_counter() - start
+    baselines = [track_bottom(s, bb.BIN).altitude for s in images]
+    score = bb.score(field, fits, baselines)[0]
+    return {"s": seconds, "meter": meter, "score": score}
+
+
+def main() -> None:
+    cli = parser(__doc__)
+    cli.add_argument("--seabed", default="sand", choices=sorted(bb.SEABEDS))
+    cli.add_argument("--pings", type=int, default=1000)
+    cli.add_argument("--bins", type=int, default=2000)
+    cli.add_argument("--finest", type=int, default=4)
+    cli.add_argument("--variants", default="baseline,new")
+    args = cli.parse_args()
+    names = args.variants.split(",")
+    unknown = sorted(set(names) - set(VARIANTS))
+    if unknown:
+        cli.error(f"unknown variants {unknown}; choose from {sorted(VARIANTS)}")
+    start = time.perf_counter()
+    field, tracks, images = render(args.seabed, args.pings, args.bins)
+    print(
+        f"{args.seabed}, {args.pings} pings x {args.bins} bins per side, finest {args.finest}"
+        f" (render {time.perf_counter() - start:.0f} s)"
+    )
+    print(
+        f"{'variant':>9} {'fit s':>6} {'inner s':>7} {'CG s':>5} {'CG its':>7} {'std s':>6}"
+        f" {'Z/std':>6} {'ratio':>6}"
+    )
+    first = None
+    for name in names:
+        r = run(field, tracks, images, args.finest, VARIANTS[name])
+        m = r["meter"]
+        first = first or r["s"]
+        its = f"{np.mean(m.iterations):.0f}/{max(m.iterations)}" if m.iterations else "-"
+        print(
+            f"{name:>9} {r['s']:6.1f} {m.seconds['inner']:7.1f} {m.seconds['cg']:5.1f}"
+            f" {its:>7} {m.seconds['std']:6.1f} {r['score']:6.3f} {first / r['s']:5.2f}x",
+            flush=True,
+        )
+
+
+if __name__ == "__main__":
+    main()
