@@ -8,9 +8,12 @@ side (single-look speckle, the seabed mesh at 0.1 m cells, 12 m altitude) and fi
 - **baseline**: the fit before 2026-11-28 as far as it can be switched back: the inner L-BFGS
   on R and Φ after each Gauss-Newton step evaluates the whole objective (``Problem.held_z``
   returning the problem itself), each step's conjugate gradients solve to a relative residual
-  of 1e-5, one thread. (Not switched back: the views' Z and R bases shared where their knots
-  coincide and the products' flat seabed taken from the fit, together ~2 s at this size.)
-- **held Z**, **rtol**, **threads**: the baseline with one change each;
+  of 1e-5 preconditioned for the Gauss-Newton matrix without the line prior (no
+  ``solve._deflated``), one thread. (Not switched back: the views' Z and R bases shared where
+  their knots coincide and the products' flat seabed taken from the fit, together ~2 s at
+  this size.)
+- **held**, **steps** (the deflation and ``GAUSS_NEWTON_RTOL``), **threads**: the baseline
+  with one change each;
 - **new**: the package as it is.
 
 Per variant: fit seconds (with the uncertainty), seconds in the inner minimisation, in the
@@ -19,7 +22,7 @@ RMSE over the relief std as the bathymetry bench (the fit moves with rounding-le
 so differences below ~0.05 are noise) and the ratio to the baseline's seconds.
 
 Usage: ``python tools/bench_fit_speed.py [--pings 1000] [--bins 2000] [--finest 4]
-[--seabed sand] [--variants baseline,new]``.
+[--seabed sand] [--variants baseline,held,steps,threads,new]``.
 """
 
 from __future__ import annotations
@@ -42,11 +45,11 @@ from sonar_raster.sonar import BeamPattern, Sonar
 
 #: What each variant changes from the package as it is.
 VARIANTS = {
-    "baseline": {"held": False, "rtol": 1e-5, "threads": 1},
-    "held Z": {"held": True, "rtol": 1e-5, "threads": 1},
-    "rtol": {"held": False, "rtol": None, "threads": 1},
-    "threads": {"held": False, "rtol": 1e-5, "threads": None},
-    "new": {"held": True, "rtol": None, "threads": None},
+    "baseline": {"held": False, "steps": False, "threads": 1},
+    "held": {"held": True, "steps": False, "threads": 1},
+    "steps": {"held": False, "steps": True, "threads": 1},
+    "threads": {"held": False, "steps": False, "threads": None},
+    "new": {"held": True, "steps": True, "threads": None},
 }
 
 
@@ -103,8 +106,9 @@ def run(field, tracks, images, finest: int, variant: dict) -> dict:
         patch = stack.enter_context
         if not variant["held"]:
             patch(mock.patch.object(problem_module.Problem, "held_z", lambda self, p: self))
-        if variant["rtol"] is not None:
-            patch(mock.patch.object(solve, "GAUSS_NEWTON_RTOL", variant["rtol"]))
+        if not variant["steps"]:
+            patch(mock.patch.object(solve, "GAUSS_NEWTON_RTOL", 1e-5))
+            patch(mock.patch.object(solve, "_deflated", lambda problem, lhs, plain: plain))
         if variant["threads"] is not None:
             patch(mock.patch.object(problem_module, "THREADS", variant["threads"]))
         patch(mock.patch.object(solve, "_minimise", meter.timed("inner", solve._minimise)))
