@@ -63,8 +63,8 @@ GAUSS_NEWTON_STEPS = 8
 #: L-BFGS iterations on R and Φ after each Gauss-Newton step.
 INNER_ITERATIONS = 20
 #: Relative residual to which each Gauss-Newton step's conjugate gradients solve (at most 30
-#: iterations): an inexact step, as the next one corrects it; at 1000 pings x 2000 bins per
-#: side pooled 4 x 4 a third of the iterations of 1e-5 where the solve converges
+#: iterations): an inexact step, the next one corrects it. 1e-2 moved a flat seabed 1.3 cm
+#: (its level is the smooth mode CG reaches last); 1e-3 left it within 0.2 mm of 1e-5's
 #: (docs/notes/2026-11-28-fit-speed.md).
 GAUSS_NEWTON_RTOL = 1e-3
 #: A restart of L-BFGS after its line search failed must lower E by this much (E is divided by
@@ -1062,11 +1062,13 @@ def _gauss_newton(
 ) -> tuple:
     """Alternate Gauss-Newton steps on the Z knots with L-BFGS on R and Φ.
 
-    Each Z step solves ``(H + H_line + μ D) δ = −g`` by conjugate gradients preconditioned with
-    the sparse LU factors of ``H + μ D``, or a multigrid V-cycle on it beyond ``AMG_KNOTS``
-    knots (D its diagonal; μ shrinks after a good step and grows after a bad one), then
-    backtracks on the full objective, which never rises within a step
-    (with ``CREST_OFFSET`` the anchor's crest offset is measured anew before each step).
+    Each Z step solves ``(H + H_line + μ D) δ = −g`` to ``GAUSS_NEWTON_RTOL`` by conjugate
+    gradients preconditioned with the sparse LU factors of ``H + μ D``, or a multigrid V-cycle
+    on it beyond ``AMG_KNOTS`` knots (D its diagonal; μ shrinks after a good step and grows
+    after a bad one), deflated on the line prior's strongest directions (:func:`_deflated`),
+    then backtracks on the full objective, which never rises within a step (with
+    ``CREST_OFFSET`` the anchor's crest offset is measured anew before each step). R and Φ
+    then take L-BFGS steps on the objective with Z held (:meth:`.Problem.held_z`).
     """
     from scipy.sparse.linalg import LinearOperator, cg
 
