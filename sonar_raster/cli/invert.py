@@ -423,10 +423,11 @@ _PIXEL_BYTES = 64
 _PIXEL_SECONDS = 1e-4
 #: The same for ``--method surface`` (two levels, 8 Gauss-Newton steps, the uncertainty):
 #: unloaded on 2 cores, ``python tools/bench_fit_speed.py --pings 200 --bins 600 --finest 1
-#: --seabed mounds`` (2 x 120 000 pixels) took 41.8 s on 2026-11-28 (61.0 s before that day's
-#: changes), 1.7e-4 s per pixel; twice that, for a loaded machine (earlier, at load 4-6 and
-#: before the faster uncertainty, 2.2e-4 to 9e-4).
-_SURFACE_PIXEL_SECONDS = 3.5e-4
+#: --seabed mounds`` (2 x 120 000 pixels) took 41.8-51.5 s on 2026-11-28 (61.0-75.8 s before
+#: that day's changes; the host's speed varies), 1.7e-4 to 2.1e-4 s per pixel; about twice
+#: that, for a loaded machine (earlier, at load 4-6 and before the faster uncertainty, 2.2e-4
+#: to 9e-4).
+_SURFACE_PIXEL_SECONDS = 4e-4
 #: Peak bytes per input pixel of the surface fit: 1.07 GB resident for one of those lines
 #: (240 000 pixels, 4.5 kB each: Jacobians of Z and log R, normal matrices, LU factors, the
 #: model's caches); with a margin.
