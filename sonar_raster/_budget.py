@@ -16,7 +16,14 @@ from pathlib import Path
 
 from .errors import SonarRasterError
 
-__all__ = ["check_disk", "check_memory", "free_disk", "physical_memory", "size_text"]
+__all__ = [
+    "check_disk",
+    "check_memory",
+    "free_disk",
+    "physical_memory",
+    "size_text",
+    "usable_cores",
+]
 
 #: Share of the machine's memory one job may plan to use.
 SHARE = 0.8
@@ -36,6 +43,14 @@ def physical_memory() -> int:
         if text.isdigit():
             total = min(total, int(text))
     return total
+
+
+def usable_cores() -> int:
+    """Cores this process may run on (its CPU affinity where the system has one)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
 
 
 def size_text(n: float) -> str:

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import functools
 import math
-import os
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -21,6 +20,7 @@ from typing import TypeVar
 import numpy as np
 from scipy import ndimage, sparse
 
+from ..._budget import usable_cores
 from ..model import adjoint, deposit_matrix, forward
 from .layout import View, bspline_basis, knot_centres
 
@@ -28,13 +28,7 @@ from .layout import View, bspline_basis, knot_centres
 #: blocks): numpy's arithmetic and scipy's sparse products and triangular solves release the
 #: GIL. (The full objective's views are not: its model's ``np.add.at`` holds the GIL, and two
 #: threads measured no faster there.)
-THREADS = max(
-    1,
-    min(
-        len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1),
-        4,
-    ),
-)
+THREADS = min(usable_cores(), 4)
 
 _T = TypeVar("_T")
 _U = TypeVar("_U")
@@ -356,12 +350,7 @@ class Problem:
 
     def beam_gradient(self, beam: Beam, g_phi: np.ndarray) -> np.ndarray:
         """Gradient wrt the log Φ nodes from ``∂E/∂Φ`` per cell."""
-        n = self.grid.nodes
-        g = g_phi * beam.phi
-        w = beam.weight
-        return np.bincount(beam.index.ravel(), ((1.0 - w) * g).ravel(), n) + np.bincount(
-            beam.index.ravel() + 1, (w * g).ravel(), n
-        )
+        return _node_gradient(beam.index, beam.weight, g_phi * beam.phi, self.grid.nodes)
 
     # -- objective --------------------------------------------------------------------------
     def __call__(self, p: np.ndarray) -> tuple[float, np.ndarray]:
@@ -490,7 +479,7 @@ class HeldZ:
             view, a, a_t, index, w = part
             side = lphi[view.side]
             low = side[index]
-            energy = np.exp(low + w * (side[index + 1] - low))  # Φ
+            energy = np.exp(low + w * (side[index + 1] - low))  # Φ, as Problem.beam
             energy *= np.exp(np.asarray(view.br @ rc.ravel()).reshape(view.shape))  # R Φ
             mu = np.asarray(a @ energy.ravel()).reshape(view.image.shape) + view.floor
             ratio = view.image / mu
@@ -498,9 +487,7 @@ class HeldZ:
             g_mu = np.where(view.mask, view.looks * (1.0 - ratio) / mu, 0.0)
             # ∂E/∂log R = ∂E/∂log Φ = ∂E/∂a · a per cell
             g = np.asarray(a_t @ g_mu.ravel()).reshape(view.shape) * energy
-            g_phi = np.bincount(index.ravel(), ((1.0 - w) * g).ravel(), n)
-            g_phi += np.bincount(index.ravel() + 1, (w * g).ravel(), n)
-            return value, view.br.T @ g.ravel(), g_phi
+            return value, view.br.T @ g.ravel(), _node_gradient(index, w, g, n)
 
         grad = np.zeros_like(p)
         total = self.constant
@@ -510,6 +497,14 @@ class HeldZ:
             grad[problem.phi_slice(part[0].side)] += g_phi
         total += problem.reflectivity_beam_priors(rc, lphi, grad)
         return total, grad
+
+
+def _node_gradient(index: np.ndarray, weight: np.ndarray, g: np.ndarray, nodes: int) -> np.ndarray:
+    """Gradient wrt the log Φ nodes from ``∂E/∂log Φ`` per cell (linear between nodes)."""
+    flat = index.ravel()
+    return np.bincount(flat, ((1.0 - weight) * g).ravel(), nodes) + np.bincount(
+        flat + 1, (weight * g).ravel(), nodes
+    )
 
 
 def view_objective(

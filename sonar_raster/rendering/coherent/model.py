@@ -45,6 +45,7 @@ from typing import Any
 
 import numpy as np
 
+from ..._budget import usable_cores
 from ..._checks import non_negative, positive
 from ..._progress import Estimate, announce, check_job, progress_bar
 from ...errors import SonarRasterError
@@ -762,13 +763,7 @@ def _render_block_compiled(
 
 def _threads() -> int:
     """Threads of the compiled engine: the cores this process may use (at most 8)."""
-    import os
-
-    try:
-        cores = len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        cores = os.cpu_count() or 1
-    return max(1, min(cores, 8))
+    return min(usable_cores(), 8)
 
 
 def _pool(threads: int) -> Any:
