@@ -705,3 +705,21 @@ def test_beam_of_an_earlier_runs_folder(tmp_path):
     assert isinstance(surface_beam(str(tmp_path / "one_side" / "beam_profile.json")), BeamProfile)
     with pytest.raises(SonarRasterError, match="holds no beam_profile.json"):
         surface_beam(str(tmp_path))
+
+
+def test_the_flat_start_follows_each_pings_first_return_and_is_level_across():
+    """A line whose first return climbs 0.5 m along it (a straight ramp, which the start's
+    penalties leave alone): the start's knots reproduce it at every nadir and are flat across
+    the track, knots that no nadir sees included. Fails without the across-track penalty."""
+    pings, bins, rb = 40, 110, 0.1
+    altitude = np.linspace(5.0, 5.5, pings)
+    images = {side: np.ones((pings, bins)) for side in ("port", "starboard")}
+    position = np.stack([np.zeros(pings), np.arange(pings) * 0.2], axis=1)
+    line = layout.Line(images, rb, position, np.zeros(pings), altitude)
+    problem = solve.problem_at([line], looks=1.0, z_knot=0.4, r_knot=0.4)
+    knots = problem_module.flat_start_knots(problem.views, problem.grid, problem.kz)
+    for view in problem.views:
+        np.testing.assert_allclose(view.nadir @ knots.ravel(), view.height - altitude, atol=1e-4)
+    inner = knots[2:-2]  # the ends' knots carry the spline's extrapolation along the track
+    assert np.ptp(inner, axis=1).max() < 1e-4
+    assert np.ptp(inner[:, 0]) > 0.4  # the ramp is there

@@ -30,6 +30,16 @@ from .layout import View, bspline_basis, knot_centres
 #: threads measured no faster there.)
 THREADS = min(usable_cores(), 4)
 
+#: SuperLU settings for the symmetric positive definite Gauss-Newton matrix (minimum degree on
+#: A + Aᵀ, diagonal pivots): 3.5x faster factorisation than the defaults at 29k knots.
+SYMMETRIC_LU = {
+    "permc_spec": "MMD_AT_PLUS_A",
+    "diag_pivot_thresh": 0.0,
+    "options": {"SymmetricMode": True},
+}
+#: Ridge of the flat start's least squares, per knot (what holds knots no nadir sees).
+FLAT_START_DAMP = 1e-3
+
 _T = TypeVar("_T")
 _U = TypeVar("_U")
 
@@ -667,10 +677,13 @@ def flat_start_knots(views: Sequence[View], grid: Grid, kz: tuple[int, int]) -> 
     """Z knots of a seabed flat across the lines at each line's first-return level.
 
     Least squares of the knots to the nadir levels (transducer height minus altitude) with a
-    strong first-difference penalty across track and a weak second difference along it.
+    strong first-difference penalty across track, a weak second difference along it and a
+    small ridge (:data:`FLAT_START_DAMP`), solved directly by its normal equations' sparse
+    factors (lsqr took 1 000-2 000 iterations: 1.5 s of a fit at 1000 pings × 2000 bins per
+    side, against 0.3 s; the knots within 1e-8 m of its).
     """
     from scipy.sparse import diags, identity, kron, vstack
-    from scipy.sparse.linalg import lsqr
+    from scipy.sparse.linalg import splu
 
     ky, kx = kz
     rows, rhs = [], []
@@ -690,6 +703,6 @@ def flat_start_knots(views: Sequence[View], grid: Grid, kz: tuple[int, int]) -> 
         d2 = diags([1.0, -2.0, 1.0], [0, 1, 2], shape=(ky - 2, ky))
         blocks.append(0.1 * scale * kron(d2, identity(kx)))
     system = vstack(blocks).tocsr()
-    target = np.concatenate([b - level, np.zeros(system.shape[0] - a.shape[0])])
-    coef = lsqr(system, target, damp=1e-3, atol=1e-10, btol=1e-10)[0] + level
+    normal = (system.T @ system + FLAT_START_DAMP**2 * identity(ky * kx)).tocsc()
+    coef = splu(normal, **SYMMETRIC_LU).solve(np.asarray(a.T @ (b - level)).ravel()) + level
     return coef.reshape(kz)

@@ -29,7 +29,15 @@ from .layout import (
     pool_image,
     tensor_basis,
 )
-from .problem import Grid, Problem, each, flat_start_knots, line_profile, soft_shadow
+from .problem import (
+    SYMMETRIC_LU,
+    Grid,
+    Problem,
+    each,
+    flat_start_knots,
+    line_profile,
+    soft_shadow,
+)
 
 if TYPE_CHECKING:
     from ..solver import BeamProfile
@@ -98,13 +106,6 @@ _SHADOW_GAP = 3
 #: rough-seabed bumps at grazing range: the rough plain's score 1.26 -> 1.29).
 _SHADOW_PINGS = 3
 
-#: SuperLU settings for the symmetric positive definite Gauss-Newton matrix (minimum degree on
-#: A + Aᵀ, diagonal pivots): 3.5x faster factorisation than the defaults at 29k knots.
-SYMMETRIC_LU = {
-    "permc_spec": "MMD_AT_PLUS_A",
-    "diag_pivot_thresh": 0.0,
-    "options": {"SymmetricMode": True},
-}
 #: Z knots above which the Gauss-Newton steps are preconditioned by algebraic multigrid
 #: (pyamg's smoothed aggregation) instead of the complete LU factors, whose fill grows faster
 #: than the knots (28.7 k knots: 1.8e7 entries, 1.3 s; 84 k: 6.7e7, 5.6 s). The bench's
