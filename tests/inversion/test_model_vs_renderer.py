@@ -44,7 +44,8 @@ def _model_image(deposit: str, gain_angle: str = "own") -> np.ndarray:
     y = np.arange(PINGS) * SPACING
     z = _height(x[None, :], y[:, None]) - ALT
     geom = model.Geometry(x, FINE, SPACING, BIN, SONAR.n_bins, 1, deposit)
-    angle = np.arctan2(-z, x) if gain_angle == "own" else np.arctan2(ALT, x) + 0 * z
+    flat = np.broadcast_to(np.arctan2(ALT, x), z.shape)
+    angle = np.arctan2(-z, x) if gain_angle == "own" else flat
     return model.forward(np.full_like(z, R), SONAR.gain(angle), z, geom) * BIN * SPACING
 
 
