@@ -30,8 +30,9 @@ from .layout import View, bspline_basis, knot_centres
 #: threads measured no faster there.)
 THREADS = min(usable_cores(), 4)
 
-#: SuperLU settings for the symmetric positive definite Gauss-Newton matrix (minimum degree on
-#: A + Aᵀ, diagonal pivots): 3.5x faster factorisation than the defaults at 29k knots.
+#: SuperLU settings for the fit's symmetric positive definite matrices (the Gauss-Newton matrix,
+#: the flat start's normal equations, the uncertainty's blocks; minimum degree on A + Aᵀ,
+#: diagonal pivots): 3.5x faster factorisation than the defaults at 29k knots.
 SYMMETRIC_LU = {
     "permc_spec": "MMD_AT_PLUS_A",
     "diag_pivot_thresh": 0.0,
