@@ -12,6 +12,13 @@ side (single-look speckle, the seabed mesh at 0.1 m cells, 12 m altitude) and fi
   switched back: the views' Z and R bases shared where their knots coincide and the
   products' flat seabed taken from the fit, together ~2 s at this size.)
 - **held**, **steps** (the deflation), **threads**: the baseline with one change each;
+- **previous**: the package as it was at the end of 2026-11-28's session 21, as far as it can
+  be switched back: two Gauss-Seidel sweeps each way in the V-cycle, the uncertainty's
+  preconditioner and products in float64, each deflated step's preconditioner making two
+  products with the Gauss-Newton matrix (:func:`_deflated_by_products`), the views' Fisher
+  matrices one after the other (:func:`_fisher_one_by_one`). (Not switched back: the
+  uncertainty's per-view threads, the tensor bases' index type, the draws' spread in float32;
+  together ~2 s at this size.)
 - **new**: the package as it is.
 
 Per variant: fit seconds (with the uncertainty), seconds in the inner minimisation, in the
@@ -20,7 +27,7 @@ RMSE over the relief std as the bathymetry bench (the fit moves with rounding-le
 so differences below ~0.05 are noise) and the ratio to the baseline's seconds.
 
 Usage: ``python tools/bench_fit_speed.py [--pings 1000] [--bins 2000] [--finest 4]
-[--seabed sand] [--variants baseline,held,steps,threads,new]``.
+[--seabed sand] [--variants baseline,held,steps,threads,previous,new]``.
 """
 
 from __future__ import annotations
@@ -28,6 +35,7 @@ from __future__ import annotations
 import math
 import time
 from contextlib import ExitStack
+from functools import partial
 from unittest import mock
 
 import bench_bathymetry as bb
@@ -47,8 +55,43 @@ VARIANTS = {
     "held": {"held": True, "steps": False, "threads": 1},
     "steps": {"held": False, "steps": True, "threads": 1},
     "threads": {"held": False, "steps": False, "threads": None},
+    "previous": {"held": True, "steps": True, "threads": None, "previous": True},
     "new": {"held": True, "steps": True, "threads": None},
 }
+#: The V-cycle's smoothing before 2026-11-28's second speed pass.
+TWO_SWEEPS = {
+    "smooth": "energy",
+    "presmoother": ("gauss_seidel", {"sweep": "symmetric", "iterations": 2}),
+    "postsmoother": ("gauss_seidel", {"sweep": "symmetric", "iterations": 2}),
+}
+
+
+def _deflated_by_products(problem, lhs, precondition):
+    """``solve._deflated`` as it was: ``A Q`` not kept, two products with ``A`` per use."""
+    from scipy.linalg import cho_factor, cho_solve
+
+    q, hq = problem.line_subspace()
+    coarse = cho_factor(q.T @ np.asarray(lhs @ q) + q.T @ hq)
+    matvec = partial(solve._gn_matvec, problem, lhs)
+
+    def apply(r):
+        exact = q @ cho_solve(coarse, q.T @ r)
+        rest = precondition(r - matvec(exact))
+        return exact + rest - q @ cho_solve(coarse, q.T @ matvec(rest))
+
+    return apply
+
+
+def _fisher_one_by_one(problem, p):
+    """``solve._fisher_z`` as it was: the views' Jacobians and products one after the other."""
+    h = None
+    for view in problem.views:
+        jac = solve._view_jacobians(problem, p, False, view)[0]
+        block = (jac.T @ jac).tocsc()
+        h = block if h is None else h + block
+    for root in solve._prior_roots(problem):
+        h = h + (root.T @ root).tocsc()
+    return h.tocsc()
 
 
 class _Meter:
@@ -106,6 +149,11 @@ def run(field, tracks, images, finest: int, variant: dict) -> dict:
             patch(mock.patch.object(problem_module.Problem, "held_z", lambda self, p: self))
         if not variant["steps"]:
             patch(mock.patch.object(solve, "_deflated", lambda problem, lhs, plain: plain))
+        if variant.get("previous"):
+            patch(mock.patch.object(solve, "AMG", TWO_SWEEPS))
+            patch(mock.patch.object(solve, "UNCERTAINTY_DTYPE", np.float64))
+            patch(mock.patch.object(solve, "_deflated", _deflated_by_products))
+            patch(mock.patch.object(solve, "_fisher_z", _fisher_one_by_one))
         if variant["threads"] is not None:
             patch(mock.patch.object(problem_module, "THREADS", variant["threads"]))
         patch(mock.patch.object(solve, "_minimise", meter.timed("inner", solve._minimise)))

@@ -723,3 +723,17 @@ def test_the_flat_start_follows_each_pings_first_return_and_is_level_across():
     inner = knots[2:-2]  # the ends' knots carry the spline's extrapolation along the track
     assert np.ptp(inner, axis=1).max() < 1e-4
     assert np.ptp(inner[:, 0]) > 0.4  # the ramp is there
+
+
+def test_the_cells_spread_is_the_sample_std_of_their_interpolated_draws():
+    """:func:`solve.draws_std` (centred draws interpolated in float32) equals each cell's
+    sample standard deviation (ddof 1) of its interpolated Z over the draws, to float32's
+    rounding, with the draws 12 m deep (their level is taken off before the float32 cast)."""
+    problem, _, rng = _problem(3, shadows=False)
+    knots = rng.normal(0.0, 0.05, (problem.nz, 9)) + 12.0
+    spread = solve.draws_std(problem, knots)
+    for view in problem.views:
+        expected = np.std(np.asarray(view.bz @ knots), axis=1, ddof=1).reshape(view.shape)
+        got = spread[(view.line, view.side)]
+        assert got.dtype == np.float64 and got.shape == view.shape
+        np.testing.assert_allclose(got, expected, rtol=1e-5)

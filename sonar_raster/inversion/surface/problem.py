@@ -262,14 +262,15 @@ class Problem:
         return self._line_operators
 
     def line_subspace(self) -> tuple[np.ndarray, np.ndarray]:
-        """The directions of the Z knots the line-profile prior weighs most, and its Hessian there.
+        """The Z knots' directions the line-profile prior weighs most, and its Hessian on them.
 
-        Returns ``(Q, Qᵀ H Q)``: ``Q`` (nz, k) orthonormal, ``H`` the prior's Hessian
+        Returns ``(Q, H Q)``: ``Q`` (nz, k) orthonormal, ``H`` the prior's Hessian
         ``Σ 2w Bᵀ Gᵀ G B`` (``B`` a view's line average less its nadir, ``G`` the low-pass).
         ``Q`` spans ``Bᵀ v`` for the eigenvectors ``v`` of ``Gᵀ G`` with eigenvalues above
         :data:`LINE_SUBSPACE_GAIN` of the largest: a few per low-pass width across the swath
         (the along-track mean of the relief, per range), where ``H`` dwarfs the image's own
-        curvature. Made once per set of objects, like :meth:`line_operators`.
+        curvature. ``H Q`` is :func:`line_profile`'s gradient at each column of ``Q``, all
+        columns at once. Made once per set of objects, like :meth:`line_operators`.
         """
         if self._line_subspace is None:
             columns = []
@@ -281,12 +282,13 @@ class Problem:
                 v = vectors[:, cells - min(strong, LINE_SUBSPACE_MAX) :]  # gains ascending
                 columns.append(np.asarray(average.T @ v) - np.outer(nadir, v.sum(axis=0)))
             q = np.linalg.qr(np.hstack(columns))[0] if columns else np.zeros((self.nz, 0))
-            qhq = np.zeros((q.shape[1], q.shape[1]))
+            hq = np.zeros_like(q)
             for average, nadir, sigma, w in self.line_operators():
                 bq = np.asarray(average @ q) - (nadir @ q)[None, :]
                 gbq = ndimage.gaussian_filter1d(bq, sigma, axis=0, mode="constant")
-                qhq += 2.0 * w * (gbq.T @ gbq)
-            self._line_subspace = (q, qhq)
+                g = ndimage.gaussian_filter1d(2.0 * w * gbq, sigma, axis=0, mode="constant")
+                hq += np.asarray(average.T @ g) - np.outer(nadir, g.sum(axis=0))
+            self._line_subspace = (q, hq)
         return self._line_subspace
 
     def relief_weights(self) -> np.ndarray | None:

@@ -112,13 +112,15 @@ _SHADOW_PINGS = 3
 #: 200-ping fit 1.23x and its 600-ping one 1.51x faster, scores within their noise
 #: (tools/bench_surface_solver.py; docs/notes/2026-11-27-solver-scaling.md).
 AMG_KNOTS = 20_000
-#: Smoothed aggregation settings: energy-minimising prolongation, two symmetric Gauss-Seidel
-#: sweeps before and after (symmetric, so the V-cycle is a valid conjugate-gradient
-#: preconditioner).
+#: Smoothed aggregation settings: energy-minimising prolongation, one symmetric Gauss-Seidel
+#: sweep before and after (symmetric, so the V-cycle is a valid conjugate-gradient
+#: preconditioner). Two sweeps each way took 10 % fewer iterations (13.8 against 15.4 per
+#: step at the issue's size) but 15-20 % more time in the steps' CG
+#: (docs/notes/2026-11-28-fit-speed-2.md).
 AMG = {
     "smooth": "energy",
-    "presmoother": ("gauss_seidel", {"sweep": "symmetric", "iterations": 2}),
-    "postsmoother": ("gauss_seidel", {"sweep": "symmetric", "iterations": 2}),
+    "presmoother": ("gauss_seidel", {"sweep": "symmetric", "iterations": 1}),
+    "postsmoother": ("gauss_seidel", {"sweep": "symmetric", "iterations": 1}),
 }
 #: Draws of the Laplace approximation behind each cell's Z std (32 estimate a std to ~12 %).
 LAPLACE_SAMPLES = 32
@@ -126,6 +128,11 @@ LAPLACE_SAMPLES = 32
 #: bench's 2 x 28 737 knots 3.4-3.6 s for the 32 samples against 9.7 s with complete LU
 #: factors, the cells' Z std within 0.8 % (median 0.02 %) of theirs (tools/bench_uncertainty.py).
 BLOCK_ILU = {"drop_tol": 1e-4, "fill_factor": 10}
+#: Precision of that preconditioner and of the products in its conjugate gradients (the
+#: iterates stay float64): at the issue's size float32 took the 32 samples' CG 7.3 → 5.4 s and
+#: the factorisation 2.5 → 2.0 s, the same 18 iterations, the knots' Z std within 0.15 % of
+#: float64's (docs/notes/2026-11-28-fit-speed-2.md).
+UNCERTAINTY_DTYPE = np.float32
 
 Progress = Callable[[str], None]
 
@@ -720,10 +727,21 @@ def elevation_std(
 
 
 def draws_std(problem: Problem, knots: np.ndarray) -> dict[tuple[int, str], np.ndarray]:
-    """Per view (line, side), each cell's standard deviation of Z over drawn Z knots (nz, k)."""
-    spread = each(
-        lambda v: np.std(np.asarray(v.bz @ knots), axis=1, ddof=1).reshape(v.shape), problem.views
-    )
+    """Per view (line, side), each cell's standard deviation of Z over drawn Z knots (nz, k).
+
+    The draws are centred on the knots, then interpolated in :data:`UNCERTAINTY_DTYPE` (a
+    spread, not a level: float32 is exact to 1e-6 relative here, and twice as fast).
+    """
+    low = UNCERTAINTY_DTYPE
+    centred = (knots - knots.mean(axis=1, keepdims=True)).astype(low)
+    scale = 1.0 / max(knots.shape[1] - 1, 1)
+
+    def spread_of(view: View) -> np.ndarray:
+        cells = np.asarray(view.bz.astype(low) @ centred)
+        spread = np.sqrt(scale * np.einsum("ij,ij->i", cells, cells))
+        return spread.astype(np.float64).reshape(view.shape)
+
+    spread = each(spread_of, problem.views)
     return {(v.line, v.side): s for v, s in zip(problem.views, spread, strict=True)}
 
 
@@ -738,9 +756,12 @@ def laplace_draws(
     rng = np.random.default_rng(seed)
     nz = problem.nz
     nr = problem.nr if reflectivity else 0
-    jz, jr = _jacobians(problem, p, reflectivity)
-    blocks = [sparse.vstack(jz)] + ([sparse.vstack(jr)] if reflectivity else [])
-    jac = sparse.hstack(blocks).tocsr()
+
+    def view_jacobian(view: View) -> sparse.csr_matrix:
+        jz, jr = _view_jacobians(problem, p, reflectivity, view)
+        return jz if jr is None else sparse.hstack([jz, jr], format="csr")
+
+    jacs = each(view_jacobian, problem.views)
     pad = sparse.csr_matrix
     roots = [sparse.hstack([d, pad((d.shape[0], nr))]).tocsr() for d in _prior_roots(problem)]
     if reflectivity:
@@ -748,17 +769,17 @@ def laplace_draws(
             sparse.hstack([pad((d.shape[0], nz)), d]).tocsr()
             for d in _reflectivity_roots(problem, p)
         ]
-    h = (jac.T @ jac).tocsc()
-    for root in roots:
-        h = h + (root.T @ root).tocsc()
-    # the draws in the order one sample at a time takes them: jac's, then each root's
-    sizes = [jac.shape[0]] + [root.shape[0] for root in roots]
+    # each view's JᵀJ on its own thread, the priors' roots in one product
+    grams = each(lambda jac: (jac.T @ jac).tocsc(), jacs)
+    h = _summed(grams + ([_gram(roots)] if roots else []))
+    # the draws in the order one sample at a time takes them: the views' rows, then each root's
+    sizes = [jac.shape[0] for jac in jacs] + [root.shape[0] for root in roots]
     draws = rng.standard_normal((samples, sum(sizes)))
     parts = np.split(draws, np.cumsum(sizes)[:-1], axis=1)
-    rhs = np.asarray(jac.T @ parts[0].T)
-    for root, part in zip(roots, parts[1:], strict=True):
-        rhs += np.asarray(root.T @ part.T)
-    return h.tocsc(), np.asfortranarray(rhs)
+    rhs = np.zeros((nz + nr, samples))
+    for matrix, part in zip(jacs + roots, parts, strict=True):
+        rhs += np.asarray(matrix.T @ part.T)
+    return h, np.asfortranarray(rhs)
 
 
 def _symmetric_solver(h: sparse.csc_matrix, nz: int) -> Callable[[np.ndarray], np.ndarray]:
@@ -775,21 +796,24 @@ def _symmetric_solver(h: sparse.csc_matrix, nz: int) -> Callable[[np.ndarray], n
     n = h.shape[0]
     if n == nz:
         return splu(h, **SYMMETRIC_LU).solve
-    diagonal = (h[:nz, :nz].tocsc(), h[nz:, nz:].tocsc())
+    low = UNCERTAINTY_DTYPE
+    diagonal = (h[:nz, :nz].astype(low).tocsc(), h[nz:, nz:].astype(low).tocsc())
     # SuperLU's factorisation and solves and the sparse products release the GIL: the two
     # blocks, and the product's two halves of rows, side by side
     blocks = each(lambda block: spilu(block, **BLOCK_ILU, **SYMMETRIC_LU), diagonal)
 
     def precondition(v: np.ndarray) -> np.ndarray:
         parts = ((blocks[0], v[:nz]), (blocks[1], v[nz:]))
-        return np.concatenate(each(lambda part: part[0].solve(part[1]), parts))
+        solved = each(lambda part: part[0].solve(part[1].astype(low)), parts)
+        return np.concatenate(solved).astype(np.float64)
 
-    h = h.tocsr()
+    h = h.astype(low).tocsr()
     half = h.shape[0] // 2
     rows = (h[:half], h[half:])
 
     def product(d: np.ndarray) -> np.ndarray:
-        return np.concatenate(each(lambda part: np.asarray(part @ d), rows))
+        d = d.astype(low)
+        return np.concatenate(each(lambda part: np.asarray(part @ d), rows)).astype(np.float64)
 
     return partial(_block_cg, product, precondition, 1e-3, 200)
 
@@ -894,36 +918,56 @@ def _jacobians(
     ``W = L / μ²`` is the Gamma likelihood's Fisher weight per bin; the Z Jacobian includes the
     beam's change of depression angle; Φ nodes and shadows are held.
     """
-    jz, jr = [], []
-    for view in problem.views:
-        z, r, beam = problem.fields(p, view)
-        shade = soft_shadow(z, view.geom.x, view.tau)[0]
-        mu = forward(r * shade, beam.phi, z, view.geom) + view.floor
-        weight = np.where(view.mask, view.looks / (mu * mu), 0.0)
-        per_cell = jacobian_z(weight, r * shade, beam.phi, z, view.geom) + deposit_jacobian(
-            weight, r * shade * beam.dz, z, view.geom
-        )
-        jz.append((per_cell @ view.bz).tocsr())
-        if reflectivity:
-            values = r * shade * beam.phi  # ∂μ/∂log R of a cell: its whole return
-            jr.append((deposit_jacobian(weight, values, z, view.geom) @ view.br).tocsr())
-    return jz, jr
+    pairs = each(partial(_view_jacobians, problem, p, reflectivity), problem.views)
+    return [jz for jz, _ in pairs], [jr for _, jr in pairs if jr is not None]
+
+
+def _view_jacobians(
+    problem: Problem, p: np.ndarray, reflectivity: bool, view: View
+) -> tuple[sparse.csr_matrix, sparse.csr_matrix | None]:
+    """One view's part of :func:`_jacobians`."""
+    z, r, beam = problem.fields(p, view)
+    shade = soft_shadow(z, view.geom.x, view.tau)[0]
+    mu = forward(r * shade, beam.phi, z, view.geom) + view.floor
+    weight = np.where(view.mask, view.looks / (mu * mu), 0.0)
+    per_cell = jacobian_z(weight, r * shade, beam.phi, z, view.geom) + deposit_jacobian(
+        weight, r * shade * beam.dz, z, view.geom
+    )
+    jz = (per_cell @ view.bz).tocsr()
+    if not reflectivity:
+        return jz, None
+    values = r * shade * beam.phi  # ∂μ/∂log R of a cell: its whole return
+    return jz, (deposit_jacobian(weight, values, z, view.geom) @ view.br).tocsr()
 
 
 def _fisher_z(problem: Problem, p: np.ndarray) -> sparse.csc_matrix:
     """Gauss-Newton (Fisher) matrix of the objective wrt the Z knots.
 
-    ``Σ_views (J B)ᵀ (J B)`` (:func:`_jacobians`) plus the Hessians of the quadratic priors on
-    Z; the line-profile prior is applied separately (:func:`.problem.line_profile`).
+    ``Σ_views (J B)ᵀ (J B)`` (:func:`_jacobians`, each view's product on its own thread) plus
+    the Hessians of the quadratic priors on Z; the line-profile prior is applied separately
+    (:func:`.problem.line_profile`).
     """
-    h = None
-    for jac in _jacobians(problem, p)[0]:
-        block = (jac.T @ jac).tocsc()
-        h = block if h is None else h + block
-    assert h is not None
-    for root in _prior_roots(problem):
-        h = h + (root.T @ root).tocsc()
-    return h.tocsc()
+
+    def gram(view: View) -> sparse.csc_matrix:
+        jac = _view_jacobians(problem, p, False, view)[0]
+        return (jac.T @ jac).tocsc()
+
+    roots = _prior_roots(problem)
+    return _summed(each(gram, problem.views) + ([_gram(roots)] if roots else []))
+
+
+def _gram(roots: Sequence[sparse.spmatrix]) -> sparse.csc_matrix:
+    """``Σ DᵀD`` over ``roots`` (stacked: one product, not one sum per root)."""
+    stacked = sparse.vstack(roots, format="csr")
+    return (stacked.T @ stacked).tocsc()
+
+
+def _summed(matrices: Sequence[sparse.spmatrix]) -> sparse.csc_matrix:
+    """The sum of sparse matrices of one shape."""
+    total = matrices[0].tocsc()
+    for m in matrices[1:]:
+        total = total + m
+    return total.tocsc()
 
 
 def deposit_jacobian(
@@ -1029,22 +1073,23 @@ def _deflated(
     one iteration each. On its strongest directions ``Q`` (:meth:`.Problem.line_subspace`) the
     system is solved exactly, the rest preconditioned as before (the balancing preconditioner
     ``M⁻¹ = P + (I − P A) M₀⁻¹ (I − A P)``, ``P = Q (Qᵀ A Q)⁻¹ Qᵀ``, ``A = lhs + H``;
-    symmetric positive definite when ``M₀`` is).
+    symmetric positive definite when ``M₀`` is). ``A Q`` is formed once per step (``H Q`` once
+    per set of objects), so applying ``M⁻¹`` takes one ``M₀⁻¹`` and no product with ``A``.
     """
     from scipy.linalg import cho_factor, cho_solve
 
     if problem.w_line <= 0:
         return precondition
-    q, qhq = problem.line_subspace()
+    q, hq = problem.line_subspace()
     if q.shape[1] == 0:
         return precondition
-    coarse = cho_factor(q.T @ np.asarray(lhs @ q) + qhq)
-    matvec = partial(_gn_matvec, problem, lhs)
+    aq = np.asarray(lhs @ q) + hq  # A Q, so that applying M⁻¹ takes no product with A
+    coarse = cho_factor(q.T @ aq)
 
     def apply(r: np.ndarray) -> np.ndarray:
-        exact = q @ cho_solve(coarse, q.T @ r)
-        rest = precondition(r - matvec(exact))
-        return exact + rest - q @ cho_solve(coarse, q.T @ matvec(rest))
+        c = cho_solve(coarse, q.T @ r)
+        rest = precondition(r - aq @ c)
+        return q @ (c - cho_solve(coarse, aq.T @ rest)) + rest
 
     return apply
 
