@@ -13,12 +13,12 @@ side (single-look speckle, the seabed mesh at 0.1 m cells, 12 m altitude) and fi
   products' flat seabed taken from the fit, together ~2 s at this size.)
 - **held**, **steps** (the deflation), **threads**: the baseline with one change each;
 - **previous**: the package as it was at the end of 2026-11-28's session 21, as far as it can
-  be switched back: two Gauss-Seidel sweeps each way in the V-cycle, the uncertainty's
-  preconditioner and products in float64, each deflated step's preconditioner making two
-  products with the Gauss-Newton matrix (:func:`_deflated_by_products`), the views' Fisher
-  matrices one after the other (:func:`_fisher_one_by_one`). (Not switched back: the
-  uncertainty's per-view threads, the tensor bases' index type, the draws' spread in float32;
-  together ~2 s at this size.)
+  be switched back: energy-minimising prolongation and two Gauss-Seidel sweeps each way in
+  the V-cycle, the uncertainty's preconditioner and products in float64, each deflated step's
+  preconditioner making two products with the Gauss-Newton matrix
+  (:func:`_deflated_by_products`), the views' Fisher matrices one after the other
+  (:func:`_fisher_one_by_one`). (Not switched back: the uncertainty's per-view threads, the
+  tensor bases' index type, the draws' spread in float32; together ~2 s at this size.)
 - **new**: the package as it is.
 
 Per variant: fit seconds (with the uncertainty), seconds in the inner minimisation, in the
@@ -58,7 +58,7 @@ VARIANTS = {
     "previous": {"held": True, "steps": True, "threads": None, "previous": True},
     "new": {"held": True, "steps": True, "threads": None},
 }
-#: The V-cycle's smoothing before 2026-11-28's second speed pass.
+#: The multigrid settings before 2026-11-28's second speed pass.
 TWO_SWEEPS = {
     "smooth": "energy",
     "presmoother": ("gauss_seidel", {"sweep": "symmetric", "iterations": 2}),

@@ -112,13 +112,13 @@ _SHADOW_PINGS = 3
 #: 200-ping fit 1.23x and its 600-ping one 1.51x faster, scores within their noise
 #: (tools/bench_surface_solver.py; docs/notes/2026-11-27-solver-scaling.md).
 AMG_KNOTS = 20_000
-#: Smoothed aggregation settings: energy-minimising prolongation, one symmetric Gauss-Seidel
+#: Smoothed aggregation settings: Jacobi-smoothed prolongation, one symmetric Gauss-Seidel
 #: sweep before and after (symmetric, so the V-cycle is a valid conjugate-gradient
-#: preconditioner). Two sweeps each way took 10 % fewer iterations (13.8 against 15.4 per
-#: step at the issue's size) but 15-20 % more time in the steps' CG
-#: (docs/notes/2026-11-28-fit-speed-2.md).
+#: preconditioner). At the issue's size, against energy-minimising prolongation: set-up 0.25
+#: against 0.45 s, 14.2 against 15.4 iterations per step; two sweeps each way took 10 % fewer
+#: iterations but 15-20 % more time in the steps' CG (docs/notes/2026-11-28-fit-speed-2.md).
 AMG = {
-    "smooth": "energy",
+    "smooth": "jacobi",
     "presmoother": ("gauss_seidel", {"sweep": "symmetric", "iterations": 1}),
     "postsmoother": ("gauss_seidel", {"sweep": "symmetric", "iterations": 1}),
 }
