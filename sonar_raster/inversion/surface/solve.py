@@ -787,7 +787,8 @@ def _symmetric_solver(h: sparse.csc_matrix, nz: int) -> Callable[[np.ndarray], n
 
     Z alone: its sparse LU. Z and log R together (their factors fill in beyond SuperLU's memory
     at tens of thousands of knots): conjugate gradients preconditioned by incomplete LU factors
-    of the two diagonal blocks (:data:`BLOCK_ILU`), to a relative residual of 1e-3 per column
+    of the two diagonal blocks (:data:`BLOCK_ILU`; factors and products in
+    :data:`UNCERTAINTY_DTYPE`), to a relative residual of 1e-3 per column
     (a sample needs no more: 32 of them estimate a spread to 12 %), all columns in one sweep
     (:func:`_block_cg`).
     """
