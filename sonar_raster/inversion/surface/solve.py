@@ -82,6 +82,8 @@ RESTART_GAIN = 1e-6
 #: Ground cells whose slant range at the altitude lies within this many bins of the image's
 #: end get no estimate (NaN) in the per-side results.
 EDGE_BINS = 6
+#: The Gauss-Newton Jacobian includes Z's change of the cast shadows (else shadows held).
+SHADOW_JACOBIAN = True
 #: Depression-angle nodes of log Φ, per degree.
 BEAM_NODES_PER_DEGREE = 1.0
 #: Objects whose cast shadow (:func:`..shadows.find_shadows` on the coarsest level's image)
@@ -712,9 +714,9 @@ def elevation_std(
 
     The posterior of the Z and log R knots, Φ held at the fit, is approximated by a Gaussian
     with the Gauss-Newton (Fisher) precision ``H = Jᵀ W J + P``: ``J`` the exact Jacobian of the
-    model image wrt both sets of knots (shadows held), ``W = L / μ²`` the Gamma likelihood's
-    Fisher weight per bin and ``P`` the Hessian of the priors (on Z the quadratic ones, on
-    log R its edge-preserving roughness at the fit; ``reflectivity=False``
+    model image wrt both sets of knots (the cast shadows' change included), ``W = L / μ²``
+    the Gamma likelihood's Fisher weight per bin and ``P`` the Hessian of the priors (on Z the
+    quadratic ones, on log R its edge-preserving roughness at the fit; ``reflectivity=False``
     holds R too). R belongs in it because shading can be explained by either. Samples
     ``H⁻¹ (Jᵀ ε₁ + Σ Dᵀ ε₂)`` with ``ε`` standard normal have exactly that covariance
     (:func:`laplace_draws`), all solved together (:func:`_symmetric_solver`). A cell's standard
@@ -917,7 +919,8 @@ def _jacobians(
     """Per view, ``sqrt(W) ∂μ/∂(Z knots)`` and (with ``reflectivity``) ``∂μ/∂(log R knots)``.
 
     ``W = L / μ²`` is the Gamma likelihood's Fisher weight per bin; the Z Jacobian includes the
-    beam's change of depression angle; Φ nodes and shadows are held.
+    beam's change of depression angle and of the cast shadows (:func:`_shade_z`, with
+    ``SHADOW_JACOBIAN``); Φ nodes are held.
     """
     pairs = each(partial(_view_jacobians, problem, p, reflectivity), problem.views)
     return [jz for jz, _ in pairs], [jr for _, jr in pairs if jr is not None]
@@ -928,17 +931,38 @@ def _view_jacobians(
 ) -> tuple[sparse.csr_matrix, sparse.csr_matrix | None]:
     """One view's part of :func:`_jacobians`."""
     z, r, beam = problem.fields(p, view)
-    shade = soft_shadow(z, view.geom.x, view.tau)[0]
+    shade, occluder, slope = soft_shadow(z, view.geom.x, view.tau)
     mu = forward(r * shade, beam.phi, z, view.geom) + view.floor
     weight = np.where(view.mask, view.looks / (mu * mu), 0.0)
     per_cell = jacobian_z(weight, r * shade, beam.phi, z, view.geom) + deposit_jacobian(
         weight, r * shade * beam.dz, z, view.geom
     )
+    if SHADOW_JACOBIAN and slope.any():
+        per_cell = per_cell + deposit_jacobian(weight, r * beam.phi, z, view.geom) @ _shade_z(
+            occluder, slope, view.geom.x
+        )
     jz = (per_cell @ view.bz).tocsr()
     if not reflectivity:
         return jz, None
     values = r * shade * beam.phi  # ∂μ/∂log R of a cell: its whole return
     return jz, (deposit_jacobian(weight, values, z, view.geom) @ view.br).tocsr()
+
+
+def _shade_z(occluder: np.ndarray, slope: np.ndarray, x: np.ndarray) -> sparse.csr_matrix:
+    """``∂S/∂Z`` per cell, (pings·cells) × (pings·cells), from :func:`.problem.soft_shadow`.
+
+    A shadowed cell j (``slope`` > 0) of occluder m: ``slope / x_j`` on its own Z and
+    ``−slope / x_m`` on the occluder's.
+    """
+    pings, cells = slope.shape
+    j = np.flatnonzero(slope)
+    ping = j // cells
+    m = ping * cells + occluder.ravel()[j]
+    s = slope.ravel()[j]
+    rows = np.concatenate([j, j])
+    cols = np.concatenate([j, m])
+    vals = np.concatenate([s / x[j % cells], -s / x[m % cells]])
+    return sparse.csr_matrix((vals, (rows, cols)), shape=(pings * cells, pings * cells))
 
 
 def _fisher_z(problem: Problem, p: np.ndarray) -> sparse.csc_matrix:
