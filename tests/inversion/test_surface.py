@@ -484,6 +484,25 @@ def test_a_coarser_fit_comes_out_level_at_every_ping_and_bin():
     assert float(np.sqrt(np.mean(error**2))) < 0.025
 
 
+def test_products_leave_out_the_swaths_edge_in_the_finest_levels_bins():
+    """``invert`` gives no estimate within ``EDGE_BINS`` bins of the image's end, counted in
+    the finest level's bins: 6 at full resolution, 12 with the images pooled 2 × 2."""
+    from sonar_raster.inversion.surface import invert_line
+
+    alt = 6.0
+    sides = _flat_render(alt)
+    bins = sides["port"].shape[1]
+    for finest in (1, 2):
+        result = invert_line(sides, 0.05, ping_spacing=0.1, finest=finest, uncertainty=False)
+        for inv in result.values():
+            known = np.isfinite(inv.elevation)
+            slant = np.hypot(inv.x[None, :], inv.altitude[:, None])
+            edge = (bins - solve.EDGE_BINS * finest) * 0.05
+            assert known.any(axis=1).all()
+            assert slant[known].max() < edge
+            assert slant[~known & (inv.x[None, :] > 1.0)].min() >= edge
+
+
 @pytest.mark.parametrize(("lines", "shadows"), [(1, False), (2, False), (1, True), (2, True)])
 def test_fisher_jacobian_includes_the_beam_and_the_shadows(lines, shadows):
     """The Gauss-Newton Jacobian wrt the Z knots (R and Φ nodes held) equals the model image's

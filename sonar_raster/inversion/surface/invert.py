@@ -115,7 +115,8 @@ def _inversion(
     slant = np.asarray(image, np.float64)
     alt = fit.altitude
     ground, _ = slant_to_ground(slant, range_bin, alt, fit.x)
-    reach = (slant.shape[1] - EDGE_BINS) * range_bin
+    # the edge in the finest level's bins: its knots are ``finest`` times wider
+    reach = (slant.shape[1] - EDGE_BINS * int(options.get("finest", 1))) * range_bin
     known = np.sqrt(fit.x[None, :] ** 2 + alt[:, None] ** 2) < reach
     refl, beam, elev = (
         np.where(known, v[name], np.nan) for v in (fit.reflectivity, fit.beam, fit.elevation)

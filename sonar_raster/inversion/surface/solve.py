@@ -80,7 +80,8 @@ GAUSS_NEWTON_RTOL = 1e-5
 #: looks × bins, so per bin) for another restart.
 RESTART_GAIN = 1e-6
 #: Ground cells whose slant range at the altitude lies within this many bins of the image's
-#: end get no estimate (NaN) in the per-side results.
+#: end get no estimate (NaN) in the per-side results; bins of the finest level fitted (the
+#: outermost knots, as wide as its bins, are barely seen by the image).
 EDGE_BINS = 6
 #: The Gauss-Newton Jacobian includes Z's change of the cast shadows (else shadows held).
 SHADOW_JACOBIAN = True
