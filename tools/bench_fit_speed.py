@@ -17,8 +17,10 @@ side (single-look speckle, the seabed mesh at 0.1 m cells, 12 m altitude) and fi
   the V-cycle, the uncertainty's preconditioner and products in float64, each deflated step's
   preconditioner making two products with the Gauss-Newton matrix
   (:func:`_deflated_by_products`), the views' Fisher matrices one after the other
-  (:func:`_fisher_one_by_one`). (Not switched back: the uncertainty's per-view threads, the
-  tensor bases' index type, the draws' spread in float32; together ~2 s at this size.)
+  (:func:`_fisher_one_by_one`), the Jacobian without the cast shadows' change
+  (``solve.SHADOW_JACOBIAN = False``, as before session 23). (Not switched back: the
+  uncertainty's per-view threads, the tensor bases' index type, the draws' spread in float32;
+  together ~2 s at this size.)
 - **new**: the package as it is.
 
 Per variant: fit seconds (with the uncertainty), seconds in the inner minimisation, in the
@@ -154,6 +156,7 @@ def run(field, tracks, images, finest: int, variant: dict) -> dict:
             patch(mock.patch.object(solve, "UNCERTAINTY_DTYPE", np.float64))
             patch(mock.patch.object(solve, "_deflated", _deflated_by_products))
             patch(mock.patch.object(solve, "_fisher_z", _fisher_one_by_one))
+            patch(mock.patch.object(solve, "SHADOW_JACOBIAN", False))
         if variant["threads"] is not None:
             patch(mock.patch.object(problem_module, "THREADS", variant["threads"]))
         patch(mock.patch.object(solve, "_minimise", meter.timed("inner", solve._minimise)))

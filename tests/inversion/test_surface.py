@@ -152,6 +152,21 @@ def test_soft_shadow_follows_the_line_of_sight():
     assert np.all(occluder[0, shade[0] < 0.5] == 99)
 
 
+def test_the_shades_jacobian_is_the_transpose_of_the_shadow_adjoint():
+    """``shade_jacobian`` (the Gauss-Newton steps' ``∂S/∂Z``) and ``shadow_adjoint`` (the
+    gradient's) are one derivative, formed and applied: ``Jᵀ g`` equals the adjoint of ``g``."""
+    from sonar_raster.inversion.surface.problem import shade_jacobian, shadow_adjoint
+
+    rng = np.random.default_rng(3)
+    x = np.arange(1, 601) * 0.05
+    z = -5.0 + 0.3 * np.sin(x[None, :] * 2.0 + rng.uniform(0, 6, (4, 1)))  # ridges per ping
+    _, occluder, slope = soft_shadow(z, x, np.full(x.size, 2e-3))
+    assert (slope > 0).sum() > 20
+    g = rng.normal(size=z.shape)
+    formed = shade_jacobian(occluder, slope, x).T @ g.ravel()
+    np.testing.assert_allclose(formed, shadow_adjoint(g, occluder, slope, x).ravel(), atol=1e-12)
+
+
 def test_refuses_bad_input():
     with pytest.raises(SonarRasterError, match="port"):
         surface.fit_surface({"left": np.ones((4, 50))}, 0.1, ping_spacing=0.1)

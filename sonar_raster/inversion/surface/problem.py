@@ -594,6 +594,22 @@ def shadow_adjoint(
     return (g - back) / x[None, :]
 
 
+def shade_jacobian(occluder: np.ndarray, slope: np.ndarray, x: np.ndarray) -> sparse.csr_matrix:
+    """``∂S/∂Z`` per cell, (pings·cells) × (pings·cells), from :func:`soft_shadow`'s terms.
+
+    A shadowed cell j (``slope`` > 0) of occluder m: ``slope / x_j`` on its own Z and
+    ``−slope / x_m`` on the occluder's; :func:`shadow_adjoint` is its transpose applied to
+    ``∂E/∂S``, without forming it.
+    """
+    pings, cells = slope.shape
+    j = np.flatnonzero(slope)
+    m = (j // cells) * cells + occluder.ravel()[j]
+    s = slope.ravel()[j]
+    vals = np.concatenate([s / x[j % cells], -s / x[m % cells]])
+    shape = (pings * cells, pings * cells)
+    return sparse.csr_matrix((vals, (np.concatenate([j, j]), np.concatenate([j, m]))), shape)
+
+
 def second_difference(
     values: np.ndarray, axis: int, step: float, weight: float
 ) -> tuple[float, np.ndarray]:

@@ -36,6 +36,7 @@ from .problem import (
     each,
     flat_start_knots,
     line_profile,
+    shade_jacobian,
     soft_shadow,
 )
 
@@ -920,7 +921,7 @@ def _jacobians(
     """Per view, ``sqrt(W) ∂μ/∂(Z knots)`` and (with ``reflectivity``) ``∂μ/∂(log R knots)``.
 
     ``W = L / μ²`` is the Gamma likelihood's Fisher weight per bin; the Z Jacobian includes the
-    beam's change of depression angle and of the cast shadows (:func:`_shade_z`, with
+    beam's change of depression angle and of the cast shadows (:func:`.problem.shade_jacobian`, with
     ``SHADOW_JACOBIAN``); Φ nodes are held.
     """
     pairs = each(partial(_view_jacobians, problem, p, reflectivity), problem.views)
@@ -935,35 +936,19 @@ def _view_jacobians(
     shade, occluder, slope = soft_shadow(z, view.geom.x, view.tau)
     mu = forward(r * shade, beam.phi, z, view.geom) + view.floor
     weight = np.where(view.mask, view.looks / (mu * mu), 0.0)
-    per_cell = jacobian_z(weight, r * shade, beam.phi, z, view.geom) + deposit_jacobian(
-        weight, r * shade * beam.dz, z, view.geom
-    )
-    if SHADOW_JACOBIAN and slope.any():
-        per_cell = per_cell + deposit_jacobian(weight, r * beam.phi, z, view.geom) @ _shade_z(
+    # the deposit once: each per-cell factor's Jacobian is it times a diagonal
+    deposit = deposit_jacobian(weight, np.ones_like(z), z, view.geom)
+    through = sparse.diags((r * shade * beam.dz).ravel())  # Z through the beam's angle
+    if SHADOW_JACOBIAN and slope.any():  # and through the cast shadows
+        through = through + sparse.diags((r * beam.phi).ravel()) @ shade_jacobian(
             occluder, slope, view.geom.x
         )
+    per_cell = jacobian_z(weight, r * shade, beam.phi, z, view.geom) + deposit @ through
     jz = (per_cell @ view.bz).tocsr()
     if not reflectivity:
         return jz, None
     values = r * shade * beam.phi  # ∂μ/∂log R of a cell: its whole return
-    return jz, (deposit_jacobian(weight, values, z, view.geom) @ view.br).tocsr()
-
-
-def _shade_z(occluder: np.ndarray, slope: np.ndarray, x: np.ndarray) -> sparse.csr_matrix:
-    """``∂S/∂Z`` per cell, (pings·cells) × (pings·cells), from :func:`.problem.soft_shadow`.
-
-    A shadowed cell j (``slope`` > 0) of occluder m: ``slope / x_j`` on its own Z and
-    ``−slope / x_m`` on the occluder's.
-    """
-    pings, cells = slope.shape
-    j = np.flatnonzero(slope)
-    ping = j // cells
-    m = ping * cells + occluder.ravel()[j]
-    s = slope.ravel()[j]
-    rows = np.concatenate([j, j])
-    cols = np.concatenate([j, m])
-    vals = np.concatenate([s / x[j % cells], -s / x[m % cells]])
-    return sparse.csr_matrix((vals, (rows, cols)), shape=(pings * cells, pings * cells))
+    return jz, (deposit @ sparse.diags(values.ravel()) @ view.br).tocsr()
 
 
 def _fisher_z(problem: Problem, p: np.ndarray) -> sparse.csc_matrix:
