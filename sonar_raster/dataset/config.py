@@ -14,6 +14,7 @@ import inspect
 import json
 import math
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -292,11 +293,55 @@ _OBJECT_COMMON = {
 }
 
 
+#: What each numeric value may be, checked when the config loads (a fixed value, a choice or a
+#: range that can only give values outside it fails then, not in every sample).
+_RANGES: dict[str, tuple[Callable[[float], bool], str]] = {
+    "frequency_hz": (lambda v: v > 0, "> 0"),
+    "max_range": (lambda v: v > 0, "> 0"),
+    "tilt_deg": (lambda v: -90 <= v <= 90, "in [-90, 90]"),
+    "beamwidth_deg": (lambda v: 0 < v <= 180, "in (0, 180]"),
+    "sound_speed": (lambda v: v > 0, "> 0"),
+    "altitude": (lambda v: v > 0, "> 0"),
+    "spacing": (lambda v: v > 0, "> 0"),
+    "heading_deg": (math.isfinite, "a number"),
+    "along_track": (lambda v: 0 <= v <= 1, "in [0, 1]"),
+    "ground_range": (lambda v: 0 <= v <= 1, "in [0, 1]"),
+    "reflectivity": (lambda v: v >= 0, ">= 0"),
+    "scale": (lambda v: v > 0, "> 0"),
+    "burial_fraction": (lambda v: 0 <= v < 1, "in [0, 1)"),
+    "yaw_deg": (math.isfinite, "a number"),
+    "pitch_deg": (math.isfinite, "a number"),
+    "roll_deg": (math.isfinite, "a number"),
+}
+
+
+def _check_ranges(dists: dict[str, Dist], where: str) -> None:
+    """Fail now where a value is not a number, or can only be drawn outside its range."""
+    for key, dist in dists.items():
+        if key not in _RANGES:
+            continue
+        valid, rule = _RANGES[key]
+        if dist.kind in ("fixed", "choice"):
+            values = dist.args
+            if any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in values):
+                raise SonarRasterError(f"{where} '{key}': must be a number, got {values[0]!r}")
+            bad = [v for v in values if not valid(float(v))]
+            if bad:
+                raise SonarRasterError(f"{where} '{key}': must be {rule}, got {bad[0]:g}")
+        elif dist.kind in ("uniform", "loguniform", "integers"):
+            lo, hi = dist.bounds
+            if not any(valid(v) for v in (lo, 0.5 * (lo + hi), hi)):
+                raise SonarRasterError(
+                    f"{where} '{key}': must be {rule}; {dist.kind} [{lo:g}, {hi:g}] never is"
+                )
+
+
 def _dists(table: dict, defaults: dict, where: str) -> dict[str, Dist]:
     out = {}
     for key, default in defaults.items():
         out[key] = parse_dist(table.pop(key, default), f"{where} '{key}'")
     _no_leftovers(table, where)
+    _check_ranges(out, where)
     return out
 
 
@@ -512,6 +557,12 @@ def load_dataset_config(path: str | Path) -> DatasetConfig:
         f"{where} [track]",
     )
     _no_leftovers(track_t, f"{where} [track]")
+    reach, lowest = sonar_d["max_range"].bounds[1], track["altitude"].bounds[0]
+    if reach <= 1.05 * lowest:
+        raise SonarRasterError(
+            f"{where}: [sonar] max_range (at most {reach:g} m) never reaches past [track] "
+            f"altitude (at least {lowest:g} m); make the range longer or the altitude lower"
+        )
     seabeds = tuple(_seabed_spec(t, f"{where} [[seabed]]") for t in _tables(data, "seabed", where))
     if not seabeds:
         seabeds = (_seabed_spec({}, f"{where} [[seabed]]"),)

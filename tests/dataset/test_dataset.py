@@ -563,20 +563,54 @@ def test_a_bad_effects_table_fails_before_any_output(tmp_path, table, message):
     [
         (
             ("altitude = { uniform = [3.0, 5.0] }", "altitude = 0.0"),
-            r"first 3 sample\(s\) all fail",
+            r"\[track\] 'altitude': must be > 0, got 0$",
         ),
         (("radius = 0.25", "radius = 0.0"), r"object 1 \(cylinder\) fails in all 3 draws"),
-        (("max_range = { uniform = [10.0, 14.0] }", "max_range = [10, 14]"), "all fail to draw"),
+        (
+            ("max_range = { uniform = [10.0, 14.0] }", "max_range = [10, 14]"),
+            r"\[sonar\] 'max_range': must be a number, got \[10, 14\]$",
+        ),
     ],
     ids=["altitude 0", "radius 0 (drawn or not)", "a list for a number"],
 )
 def test_a_bad_fixed_value_fails_once_before_any_output(tmp_path, change, message):
-    """Not once per sample (each of thousands recorded as failed) but before the folder is made."""
-    config = _config(tmp_path, SMALL.replace(*change))
+    """Not once per sample (each of thousands recorded as failed) but before the folder is made
+    (a value that can never be right: when the config loads)."""
     out = tmp_path / "out"
     with pytest.raises(SonarRasterError, match=message):
-        generate_dataset(config, out, count=50)
+        generate_dataset(_config(tmp_path, SMALL.replace(*change)), out, count=50)
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (
+            ("altitude = { uniform = [3.0, 5.0] }", "altitude = { uniform = [-5.0, -1.0] }"),
+            r"'altitude': must be > 0; uniform \[-5, -1\] never is",
+        ),
+        (
+            ("max_range = { uniform = [10.0, 14.0] }", "max_range = { choice = [10.0, -1.0] }"),
+            r"'max_range': must be > 0, got -1",
+        ),
+        (
+            ("max_range = { uniform = [10.0, 14.0] }", "max_range = 3.0"),
+            r"max_range \(at most 3 m\) never reaches past \[track\] altitude \(at least 3 m\)",
+        ),
+        (("spacing = 0.08", "spacing = true"), r"'spacing': must be a number, got True"),
+    ],
+    ids=["a range below zero", "a bad choice", "range within the altitude", "a bool"],
+)
+def test_a_value_outside_its_range_fails_when_the_config_loads(tmp_path, change, message):
+    """One line naming the table, the key and its rule, before a sample is drawn."""
+    assert change[0] in SMALL
+    with pytest.raises(SonarRasterError, match=message):
+        _config(tmp_path, SMALL.replace(*change))
+    # a range that reaches into its valid values is left to the samples' own checks
+    reaching = SMALL.replace(
+        "altitude = { uniform = [3.0, 5.0] }", "altitude = { uniform = [-1.0, 5.0] }"
+    )
+    assert _config(tmp_path, reaching, "ok.toml").track["altitude"].bounds == (-1.0, 5.0)
 
 
 def test_an_effects_curve_file_is_read_beside_the_config(tmp_path):
