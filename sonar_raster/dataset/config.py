@@ -14,7 +14,6 @@ import inspect
 import json
 import math
 import sys
-from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -293,47 +292,64 @@ _OBJECT_COMMON = {
 }
 
 
-#: What each numeric value may be, checked when the config loads (a fixed value, a choice or a
-#: range that can only give values outside it fails then, not in every sample).
-_RANGES: dict[str, tuple[Callable[[float], bool], str]] = {
-    "frequency_hz": (lambda v: v > 0, "> 0"),
-    "max_range": (lambda v: v > 0, "> 0"),
-    "tilt_deg": (lambda v: -90 <= v <= 90, "in [-90, 90]"),
-    "beamwidth_deg": (lambda v: 0 < v <= 180, "in (0, 180]"),
-    "sound_speed": (lambda v: v > 0, "> 0"),
-    "altitude": (lambda v: v > 0, "> 0"),
-    "spacing": (lambda v: v > 0, "> 0"),
-    "heading_deg": (math.isfinite, "a number"),
-    "along_track": (lambda v: 0 <= v <= 1, "in [0, 1]"),
-    "ground_range": (lambda v: 0 <= v <= 1, "in [0, 1]"),
-    "reflectivity": (lambda v: v >= 0, ">= 0"),
-    "scale": (lambda v: v > 0, "> 0"),
-    "burial_fraction": (lambda v: 0 <= v < 1, "in [0, 1)"),
-    "yaw_deg": (math.isfinite, "a number"),
-    "pitch_deg": (math.isfinite, "a number"),
-    "roll_deg": (math.isfinite, "a number"),
+#: The interval each numeric value may lie in, ``(low, high, low open, high open)``, checked
+#: when the config loads: a fixed value, a choice or a range that can only give values outside
+#: it fails then, not in every sample.
+_RANGES: dict[str, tuple[float, float, bool, bool]] = {
+    "frequency_hz": (0.0, math.inf, True, True),
+    "max_range": (0.0, math.inf, True, True),
+    "tilt_deg": (-90.0, 90.0, False, False),
+    "beamwidth_deg": (0.0, 180.0, True, False),
+    "sound_speed": (0.0, math.inf, True, True),
+    "altitude": (0.0, math.inf, True, True),
+    "spacing": (0.0, math.inf, True, True),
+    "heading_deg": (-math.inf, math.inf, True, True),
+    "along_track": (0.0, 1.0, False, False),
+    "ground_range": (0.0, 1.0, False, False),
+    "reflectivity": (0.0, math.inf, False, True),
+    "scale": (0.0, math.inf, True, True),
+    "burial_fraction": (0.0, 1.0, False, True),
+    "yaw_deg": (-math.inf, math.inf, True, True),
+    "pitch_deg": (-math.inf, math.inf, True, True),
+    "roll_deg": (-math.inf, math.inf, True, True),
 }
 
 
+def _rule(low: float, high: float, low_open: bool, high_open: bool) -> str:
+    """``"> 0"``, ``"in [0, 1)"``, ``"a number"``: the interval in words."""
+    if math.isinf(low) and math.isinf(high):
+        return "a number"
+    if math.isinf(high):
+        return f"{'>' if low_open else '>='} {low:g}"
+    return f"in {'(' if low_open else '['}{low:g}, {high:g}{')' if high_open else ']'}"
+
+
 def _check_ranges(dists: dict[str, Dist], where: str) -> None:
-    """Fail now where a value is not a number, or can only be drawn outside its range."""
+    """Fail now where a value is not a number, or can only be drawn outside its interval."""
     for key, dist in dists.items():
         if key not in _RANGES:
             continue
-        valid, rule = _RANGES[key]
-        if dist.kind in ("fixed", "choice"):
-            values = dist.args
-            if any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in values):
-                raise SonarRasterError(f"{where} '{key}': must be a number, got {values[0]!r}")
-            bad = [v for v in values if not valid(float(v))]
-            if bad:
-                raise SonarRasterError(f"{where} '{key}': must be {rule}, got {bad[0]:g}")
-        elif dist.kind in ("uniform", "loguniform", "integers"):
-            lo, hi = dist.bounds
-            if not any(valid(v) for v in (lo, 0.5 * (lo + hi), hi)):
-                raise SonarRasterError(
-                    f"{where} '{key}': must be {rule}; {dist.kind} [{lo:g}, {hi:g}] never is"
-                )
+        low, high, low_open, high_open = _RANGES[key]
+        rule = _rule(low, high, low_open, high_open)
+        values = dist.args if dist.kind in ("fixed", "choice") else ()
+        if dist.kind == "vector" or any(
+            isinstance(v, bool) or not isinstance(v, (int, float)) for v in values
+        ):
+            shown = "a list" if dist.kind == "vector" else repr(values[0])
+            raise SonarRasterError(f"{where} '{key}': must be a number, got {shown}")
+        lo, hi = dist.bounds  # every value it can draw lies in [lo, hi]
+        if values:
+            inside = [
+                low < v < high or (v == low and not low_open) or (v == high and not high_open)
+                for v in values
+            ]
+            if not all(inside):
+                bad = values[inside.index(False)]
+                raise SonarRasterError(f"{where} '{key}': must be {rule}, got {bad:g}")
+        elif hi < low or lo > high or (hi == low and low_open) or (lo == high and high_open):
+            raise SonarRasterError(
+                f"{where} '{key}': must be {rule}; {dist.kind} [{lo:g}, {hi:g}] never is"
+            )
 
 
 def _dists(table: dict, defaults: dict, where: str) -> dict[str, Dist]:

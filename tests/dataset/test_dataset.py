@@ -598,8 +598,12 @@ def test_a_bad_fixed_value_fails_once_before_any_output(tmp_path, change, messag
             r"max_range \(at most 3 m\) never reaches past \[track\] altitude \(at least 3 m\)",
         ),
         (("spacing = 0.08", "spacing = true"), r"'spacing': must be a number, got True"),
+        (
+            ("max_range = { uniform = [10.0, 14.0] }", "max_range = [{ uniform = [10, 14] }]"),
+            r"'max_range': must be a number, got a list$",
+        ),
     ],
-    ids=["a range below zero", "a bad choice", "range within the altitude", "a bool"],
+    ids=["a range below zero", "a bad choice", "range within the altitude", "a bool", "a list"],
 )
 def test_a_value_outside_its_range_fails_when_the_config_loads(tmp_path, change, message):
     """One line naming the table, the key and its rule, before a sample is drawn."""
@@ -609,8 +613,10 @@ def test_a_value_outside_its_range_fails_when_the_config_loads(tmp_path, change,
     # a range that reaches into its valid values is left to the samples' own checks
     reaching = SMALL.replace(
         "altitude = { uniform = [3.0, 5.0] }", "altitude = { uniform = [-1.0, 5.0] }"
-    )
-    assert _config(tmp_path, reaching, "ok.toml").track["altitude"].bounds == (-1.0, 5.0)
+    ).replace("tilt_deg = 15.0", "tilt_deg = { uniform = [-1000.0, 100.0] }")
+    config = _config(tmp_path, reaching, "ok.toml")
+    assert config.track["altitude"].bounds == (-1.0, 5.0)
+    assert config.sonar["tilt_deg"].bounds == (-1000.0, 100.0)  # [-90, 90] lies inside it
 
 
 def test_an_effects_curve_file_is_read_beside_the_config(tmp_path):
