@@ -315,8 +315,21 @@ _RANGES: dict[str, tuple[float, float, bool, bool]] = {
 }
 
 
-def _rule(low: float, high: float, low_open: bool, high_open: bool) -> str:
-    """``"> 0"``, ``"in [0, 1)"``, ``"a number"``: the interval in words."""
+#: A sample's ``max_range`` must exceed its altitude by this factor (a swath to draw).
+REACH_PAST_ALTITUDE = 1.05
+
+
+def allowed(key: str, value: float) -> bool:
+    """Whether ``value`` lies in ``key``'s interval (:data:`_RANGES`)."""
+    low, high, low_open, high_open = _RANGES[key]
+    return (
+        low < value < high or (value == low and not low_open) or (value == high and not high_open)
+    )
+
+
+def rule(key: str) -> str:
+    """``key``'s interval in words: ``"> 0"``, ``"in [0, 1)"``, ``"a number"``."""
+    low, high, low_open, high_open = _RANGES[key]
     if math.isinf(low) and math.isinf(high):
         return "a number"
     if math.isinf(high):
@@ -330,7 +343,6 @@ def _check_ranges(dists: dict[str, Dist], where: str) -> None:
         if key not in _RANGES:
             continue
         low, high, low_open, high_open = _RANGES[key]
-        rule = _rule(low, high, low_open, high_open)
         values = dist.args if dist.kind in ("fixed", "choice") else ()
         if dist.kind == "vector" or any(
             isinstance(v, bool) or not isinstance(v, (int, float)) for v in values
@@ -338,17 +350,12 @@ def _check_ranges(dists: dict[str, Dist], where: str) -> None:
             shown = "a list" if dist.kind == "vector" else repr(values[0])
             raise SonarRasterError(f"{where} '{key}': must be a number, got {shown}")
         lo, hi = dist.bounds  # every value it can draw lies in [lo, hi]
-        if values:
-            inside = [
-                low < v < high or (v == low and not low_open) or (v == high and not high_open)
-                for v in values
-            ]
-            if not all(inside):
-                bad = values[inside.index(False)]
-                raise SonarRasterError(f"{where} '{key}': must be {rule}, got {bad:g}")
-        elif hi < low or lo > high or (hi == low and low_open) or (lo == high and high_open):
+        bad = [v for v in values if not allowed(key, float(v))]
+        if bad:
+            raise SonarRasterError(f"{where} '{key}': must be {rule(key)}, got {bad[0]:g}")
+        if hi < low or lo > high or (hi == low and low_open) or (lo == high and high_open):
             raise SonarRasterError(
-                f"{where} '{key}': must be {rule}; {dist.kind} [{lo:g}, {hi:g}] never is"
+                f"{where} '{key}': must be {rule(key)}; {dist.kind} [{lo:g}, {hi:g}] never is"
             )
 
 
@@ -574,7 +581,7 @@ def load_dataset_config(path: str | Path) -> DatasetConfig:
     )
     _no_leftovers(track_t, f"{where} [track]")
     reach, lowest = sonar_d["max_range"].bounds[1], track["altitude"].bounds[0]
-    if reach <= 1.05 * lowest:
+    if reach <= REACH_PAST_ALTITUDE * lowest:
         raise SonarRasterError(
             f"{where}: [sonar] max_range (at most {reach:g} m) never reaches past [track] "
             f"altitude (at least {lowest:g} m); make the range longer or the altitude lower"

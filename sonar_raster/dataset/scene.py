@@ -21,7 +21,7 @@ from ..scenes.objects import build_primitive
 from ..scenes.seabed import MICRO_RESOLUTION_BINS, Heightfield, make_seabed, micro_relief
 from ..sonar import BeamPattern, Sonar
 from ..trajectory import Trajectory
-from .config import DatasetConfig, ObjectSpec
+from .config import REACH_PAST_ALTITUDE, DatasetConfig, ObjectSpec, allowed, rule
 
 _SEABED_MARGIN = 2.0  # metres of seabed beyond the swath and the track ends
 _PLACEMENT_TRIES = 20
@@ -211,11 +211,10 @@ def draw_sample(config: DatasetConfig, seed: int, index: int) -> SampleScene:
     t = {key: dist.draw(rng) for key, dist in config.track.items()}
     altitude, spacing, heading = float(t["altitude"]), float(t["spacing"]), float(t["heading_deg"])
     max_range = float(s["max_range"])
-    if not (altitude > 0 and spacing > 0):
-        raise SonarRasterError(
-            f"drawn altitude {altitude:g} m and spacing {spacing:g} m must be > 0"
-        )
-    if max_range <= 1.05 * altitude:
+    for key, value in (("altitude", altitude), ("spacing", spacing)):
+        if not allowed(key, value):
+            raise SonarRasterError(f"drawn {key} {value:g} m must be {rule(key)}")
+    if max_range <= REACH_PAST_ALTITUDE * altitude:
         raise SonarRasterError(
             f"drawn max_range {max_range:g} m does not reach past the altitude {altitude:g} m"
         )
@@ -302,11 +301,10 @@ def _draw_instance(
     burial = float(spec.burial_fraction.draw(rng))
     yaw, pitch, roll = (float(d.draw(rng)) for d in (spec.yaw_deg, spec.pitch_deg, spec.roll_deg))
     x, y, side = _place(config, rng, centres, ground_max, length)
-    if not (scale > 0 and 0.0 <= burial < 1.0 and reflectivity >= 0):
-        raise SonarRasterError(
-            f"drawn scale {scale:g}, burial_fraction {burial:g} or reflectivity "
-            f"{reflectivity:g} of '{spec.label}' is out of range (scale > 0, burial in [0, 1))"
-        )
+    drawn = {"scale": scale, "burial_fraction": burial, "reflectivity": reflectivity}
+    for key, value in drawn.items():
+        if not allowed(key, value):
+            raise SonarRasterError(f"drawn {key} {value:g} of '{spec.label}' must be {rule(key)}")
     v, f = object_mesh_of(spec, params, Path(config.source).parent)
     rot = _rotation(math.radians(yaw), math.radians(pitch), math.radians(roll))
     v = (v @ rot.T) * scale
