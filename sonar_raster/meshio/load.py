@@ -85,7 +85,12 @@ def _load_trimesh(path: Path) -> list[MeshPart]:
         # processed below (:func:`_finite`), which refuses non-finite vertices; trimesh's
         # arithmetic on them (STL normals) is not the user's concern
         with np.errstate(invalid="ignore", over="ignore"):
-            scene = trimesh.load_scene(str(path), process=False)
+            scene = trimesh.load_scene(str(path), process=False, resolver=_resolver(path))
+    except _MissingAsset as exc:
+        raise SonarRasterError(
+            f"'{path.name}' refers to '{exc.name}', which is not in {path.parent}; put it "
+            "beside the model file, or export the model as one file (.glb)"
+        ) from None
     except ImportError as exc:  # trimesh decodes non-UTF-8 text with an optional package
         raise SonarRasterError(
             f"cannot read '{path.name}' as {kind}: it is corrupt, or text that is not UTF-8; "
@@ -119,6 +124,37 @@ def _load_trimesh(path: Path) -> list[MeshPart]:
         reflectivity = _reflectivity(scene, node, mesh, path)
         parts.append(MeshPart(vertices, faces, reflectivity, str(node)))
     return parts
+
+
+class _MissingAsset(FileNotFoundError):
+    """A file the model refers to (a glTF buffer or image, an OBJ material) is not there."""
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name)
+        self.name = name
+
+
+def _resolver(path: Path) -> Any:
+    """The reader trimesh gets for the files a model refers to, in the model's folder.
+
+    glTF refers to them by URI, so a name with a space or other reserved character is
+    percent-encoded (``my%20hull.bin`` for ``my hull.bin``): a name not found as written is
+    looked up decoded. A name found neither way raises :class:`_MissingAsset`.
+    """
+    from urllib.parse import unquote
+
+    from trimesh.resolvers import FilePathResolver
+
+    class Decoding(FilePathResolver):
+        def get(self, name: str) -> bytes:
+            for candidate in dict.fromkeys((name, unquote(name))):
+                try:
+                    return super().get(candidate)
+                except FileNotFoundError:
+                    continue
+            raise _MissingAsset(unquote(name))
+
+    return Decoding(str(path))
 
 
 def _finite(mesh: Any, path: Path, node: str) -> Any:

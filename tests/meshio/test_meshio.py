@@ -248,6 +248,37 @@ def test_a_gltf_whose_buffer_is_short_is_one_line(tmp_path):
     assert "\n" not in str(info.value)
 
 
+def _gltf_with_buffers(folder, names):
+    """A box as ``box.gltf`` whose buffers are the files ``names``, each referred to by its
+    URI (percent-encoded, as the glTF format has it)."""
+    from urllib.parse import quote
+
+    files = trimesh.exchange.gltf.export_gltf(trimesh.Scene(box()))
+    doc = json.loads(files["model.gltf"])
+    for buffer, name in zip(doc["buffers"], names, strict=True):
+        (folder / name).write_bytes(files[buffer["uri"]])
+        buffer["uri"] = quote(name)
+    (folder / "box.gltf").write_text(json.dumps(doc))
+    return folder / "box.gltf"
+
+
+def test_a_gltf_finds_buffers_named_with_spaces_and_reserved_characters(tmp_path):
+    """glTF refers to its files by URI: ``my%20hull.bin`` is the file ``my hull.bin``
+    (trimesh looked for the encoded name and failed)."""
+    path = _gltf_with_buffers(tmp_path, ["my hull.bin", "hull #2 [100%].bin"])
+    assert "%20" in path.read_text() and "%25" in path.read_text()
+    (part,) = load_model(path)
+    assert len(part.faces) == 12
+    np.testing.assert_allclose(bounds(part), [[-0.5, -1.0, -1.5], [0.5, 1.0, 1.5]])
+
+
+def test_a_gltf_whose_buffer_file_is_missing_names_it(tmp_path):
+    path = _gltf_with_buffers(tmp_path, ["hull mesh.bin", "hull more.bin"])
+    (tmp_path / "hull more.bin").unlink()
+    with pytest.raises(SonarRasterError, match=r"'box\.gltf' refers to 'hull more\.bin', which"):
+        load_model(path)
+
+
 @pytest.mark.parametrize("suffix", [".glb", ".obj", ".ply", ".stl"])
 @pytest.mark.parametrize("value", [np.inf, np.nan])
 def test_a_non_finite_vertex_is_one_line_naming_the_file(tmp_path, suffix, value):
