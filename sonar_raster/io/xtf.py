@@ -9,7 +9,8 @@ Conventions (checked on the OpenSidescan sample and by the round-trip tests):
 - The side of a channel is ``TypeOfChannel`` of its ``ChanInfo`` entry (1 port, 2 starboard);
   the first port and the first starboard channel are read, other channels are skipped. A side
   the header's ``NumberOfSonarChannels`` leaves out is read from an entry past the count that
-  describes it (with a sample size), with a warning.
+  describes it (with a sample size), with a warning. With one side known, pings that carry
+  more channels than the header describes draw a warning that the others are not read.
 - Port samples are stored from far range to nadir, starboard samples from nadir outward (as
   pyxtf's ``concatenate_channel`` assumes); :class:`SonarImage` sides run from range 0 outward.
 - Sample spacing is ``SlantRange / NumSamples`` (or ``TimeDuration · c / 2 / NumSamples`` when
@@ -254,6 +255,7 @@ class XtfReader:
         self.tilt_deg = tilt if 0.0 < tilt < 90.0 else 0.0
         self.skipped: list[SkippedPing] = []
         self.count = 0
+        self._unread_told = False
 
     def _read_header(self) -> Any:
         pyxtf = _pyxtf()
@@ -427,6 +429,15 @@ class XtfReader:
         ping = pyxtf.XTFPingHeader.from_buffer_copy(raw)
         info = self._info
         wanted = set(self.channels.values())
+        if int(ping.NumChansToFollow) > len(info) and len(wanted) < 2 and not self._unread_told:
+            # one side known: a channel the header leaves out may be the other one
+            self._unread_told = True
+            log.warning(
+                "%s: pings carry %d channels but the header describes %d (the %s side only); "
+                "the others are not read: set their ChanInfo (TypeOfChannel 1 port, 2 "
+                "starboard) to read them",
+                self.path, int(ping.NumChansToFollow), len(info), next(iter(self.channels)),
+            )  # fmt: skip
         channels: list[tuple[Any, np.ndarray]] = []
         pos = head
         for k in range(min(int(ping.NumChansToFollow), len(info))):

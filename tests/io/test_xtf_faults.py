@@ -184,7 +184,8 @@ def test_a_header_counting_one_channel_of_two_still_reads_both_sides(tmp_path, c
 
 def test_a_stale_chaninfo_entry_past_the_count_is_not_read(tmp_path, caplog, clean):
     """A one-channel file whose ChanInfo 1 says starboard but holds no sample size (a blank
-    entry with a stale type): it is not read, so port comes out as in the clean file."""
+    entry with a stale type): it is not read, so port comes out as in the clean file, and one
+    warning says the pings carry a channel the header does not describe."""
     data = bytearray(SAMPLE.read_bytes())
     data[166:168] = (1).to_bytes(2, "little")
     size = ctypes.sizeof(pyxtf.XTFChanInfo)
@@ -196,6 +197,9 @@ def test_a_stale_chaninfo_entry_past_the_count_is_not_read(tmp_path, caplog, cle
     image, _ = read_xtf(path)
     assert list(image.sides) == ["port"]
     np.testing.assert_array_equal(image.sides["port"], clean[0].sides["port"])
+    lines = [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
+    assert len(lines) == 1 and "pings carry 2 channels but the header describes 1" in lines[0]
+    assert "the port side only" in lines[0]
 
 
 def test_longitudes_and_latitudes_marked_as_metres_are_read_as_degrees(tmp_path, caplog, clean):
