@@ -20,6 +20,10 @@ from .vrml import load_vrml
 
 log = logging.getLogger(__name__)
 
+#: glTF extensions that compress geometry which the reader cannot decode (Draco it decodes,
+#: through DracoPy): a file that requires one would load as garbage.
+UNDECODED_EXTENSIONS = ("EXT_meshopt_compression", "KHR_meshopt_compression")
+
 
 _DEFAULT_REFLECTIVITY = 0.5
 
@@ -80,7 +84,9 @@ def _load_trimesh(path: Path) -> list[MeshPart]:
 
     kind = path.suffix.lstrip(".").upper()
     if kind == "GLTF":
-        _check_json(path)
+        _check_extensions(_check_json(path), path)
+    elif kind == "GLB":
+        _check_extensions(_glb_json(path), path)
     try:
         # processed below (:func:`_finite`), which refuses non-finite vertices; trimesh's
         # arithmetic on them (STL normals) is not the user's concern
@@ -174,13 +180,40 @@ def _finite(mesh: Any, path: Path, node: str) -> Any:
     return mesh
 
 
-def _check_json(path: Path) -> None:
-    """A one-line error unless the ``.gltf`` file is JSON (trimesh blames a missing file)."""
+def _check_extensions(doc: Any, path: Path) -> None:
+    """A one-line error if the glTF document requires an extension the reader cannot decode."""
+    required = doc.get("extensionsRequired", []) if isinstance(doc, dict) else []
+    missing = [e for e in required if e in UNDECODED_EXTENSIONS]
+    if missing:
+        raise SonarRasterError(
+            f"'{path.name}' is compressed with the glTF extension {missing[0]}, which the reader "
+            "cannot decode; re-export it without that compression (e.g. gltf-transform copy)"
+        )
+
+
+def _glb_json(path: Path) -> Any:
+    """The JSON chunk of a ``.glb`` file, or None where it is not one (trimesh says why)."""
+    import json
+    import struct
+
+    with open(path, "rb") as fh:
+        head = fh.read(20)
+        if len(head) < 20 or head[:4] != b"glTF" or head[16:20] != b"JSON":
+            return None
+        size = struct.unpack("<I", head[12:16])[0]
+        try:
+            return json.loads(fh.read(size))
+        except ValueError:
+            return None
+
+
+def _check_json(path: Path) -> Any:
+    """The ``.gltf`` file's JSON; a one-line error if it is none (trimesh blames a file)."""
     import json
 
     try:
         with open(path, encoding="utf-8") as fh:
-            json.load(fh)
+            return json.load(fh)
     except UnicodeDecodeError:
         raise SonarRasterError(
             f"cannot read '{path.name}' as GLTF: it is not UTF-8 JSON (a binary glTF is named "

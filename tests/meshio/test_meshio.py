@@ -279,6 +279,40 @@ def test_a_gltf_whose_buffer_file_is_missing_names_it(tmp_path):
         load_model(path)
 
 
+def test_a_draco_compressed_glb_loads(tmp_path):
+    """Draco (KHR_draco_mesh_compression) is common in downloaded glTF; without its decoder
+    trimesh filled the positions with zeros and the model was 'only triangles of zero area'."""
+    path = tmp_path / "draco.glb"
+    path.write_bytes(trimesh.exchange.gltf.export_glb(moved_scene(), extension_draco=True))
+    (part,) = load_model(path)
+    assert len(part.faces) == 12
+    np.testing.assert_allclose(bounds(part), MOVED_BOUNDS, atol=1e-3)  # Draco quantises
+
+
+@pytest.mark.parametrize("suffix", [".gltf", ".glb"])
+def test_a_gltf_compressed_in_a_way_the_reader_cannot_decode_is_one_line(tmp_path, suffix):
+    scene = moved_scene()
+    if suffix == ".glb":
+        data = trimesh.exchange.gltf.export_glb(scene)
+        size = int.from_bytes(data[12:16], "little")
+        doc = json.loads(data[20 : 20 + size])
+        doc["extensionsRequired"] = ["EXT_meshopt_compression"]
+        chunk = json.dumps(doc).encode().ljust(size + 64, b" ")
+        body = len(chunk).to_bytes(4, "little") + b"JSON" + chunk + data[20 + size :]
+        data = data[:8] + (12 + len(body)).to_bytes(4, "little") + body
+        (tmp_path / "packed.glb").write_bytes(data)
+    else:
+        files = trimesh.exchange.gltf.export_gltf(scene)
+        doc = json.loads(files["model.gltf"])
+        doc["extensionsRequired"] = ["EXT_meshopt_compression"]
+        for name, blob in files.items():
+            if name != "model.gltf":
+                (tmp_path / name).write_bytes(blob)
+        (tmp_path / "packed.gltf").write_text(json.dumps(doc))
+    with pytest.raises(SonarRasterError, match=r"'packed\.gl\w+' is compressed with the glTF "):
+        load_model(tmp_path / f"packed{suffix}")
+
+
 @pytest.mark.parametrize("suffix", [".glb", ".obj", ".ply", ".stl"])
 @pytest.mark.parametrize("value", [np.inf, np.nan])
 def test_a_non_finite_vertex_is_one_line_naming_the_file(tmp_path, suffix, value):
