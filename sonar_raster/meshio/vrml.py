@@ -805,6 +805,103 @@ def _sphere(node: _Node) -> tuple[np.ndarray, np.ndarray]:
     return _lathe(list(zip(radii, r * np.cos(phi), strict=True)), False, False)
 
 
+def _per_spine(values: np.ndarray, n: int) -> np.ndarray:
+    """One row of ``values`` per spine point: the rows given, the last one repeated."""
+    return values[np.minimum(np.arange(n), len(values) - 1)]
+
+
+def _unit(vectors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rows scaled to length 1, and which rows had a length to scale (the rest stay 0)."""
+    norm = np.linalg.norm(vectors, axis=1)
+    ok = norm > 1e-12 * max(float(norm.max(initial=0.0)), 1e-300)
+    out = np.zeros_like(vectors)
+    out[ok] = vectors[ok] / norm[ok, None]
+    return out, ok
+
+
+def _spine_frames(spine: np.ndarray) -> np.ndarray:
+    """Per spine point the cross-section plane's axes as rows X, Y, Z, shape (n, 3, 3).
+
+    VRML97 §6.18: Y along the spine (the chord of the neighbours; a closed spine joins its
+    ends), Z the normal of the spine's bend at the point (at an open end its neighbour's),
+    flipped to agree with the previous one; where the spine does not bend, the previous Z;
+    a straight spine takes the rotation of +y onto it applied to +z. X = Y × Z.
+    """
+    n = len(spine)
+    closed = n > 2 and np.allclose(spine[0], spine[-1])
+    ahead = np.vstack([spine[1:], spine[-1:]])
+    behind = np.vstack([spine[:1], spine[:-1]])
+    if closed:
+        ahead[-1], behind[0] = spine[1], spine[-2]
+    y, y_ok = _unit(ahead - behind)
+    for i in range(n):  # coincident points: the nearest direction before, else after
+        if not y_ok[i]:
+            near = np.flatnonzero(y_ok)
+            y[i] = y[near[np.argmin(np.abs(near - i))]] if near.size else (0.0, 1.0, 0.0)
+    z = np.cross(ahead - spine, behind - spine)
+    if not closed:
+        z[0], z[-1] = z[min(1, n - 1)], z[max(n - 2, 0)]
+    z, z_ok = _unit(z)
+    if not z_ok.any():  # a straight spine: +y turned onto it takes +z along
+        axis = np.cross((0.0, 1.0, 0.0), y[0])
+        angle = math.atan2(float(np.linalg.norm(axis)), float(y[0][1]))
+        if np.linalg.norm(axis) < 1e-12:
+            axis = np.array([1.0, 0.0, 0.0])
+        z[:] = _rotation(np.r_[axis, angle]) @ np.array([0.0, 0.0, 1.0])
+    else:
+        first = int(np.argmax(z_ok))
+        z[:first] = z[first]
+        for i in range(first + 1, n):
+            if not z_ok[i]:
+                z[i] = z[i - 1]
+            elif float(z[i] @ z[i - 1]) < 0.0:
+                z[i] = -z[i]
+    return np.stack([np.cross(y, z), y, z], axis=1)
+
+
+def _extrusion(node: _Node) -> tuple[np.ndarray, np.ndarray]:
+    """Extrusion (VRML97 §6.18), swept and capped.
+
+    The cross-section, scaled and turned by ``orientation``, is placed in each spine point's
+    plane (:func:`_spine_frames`) and joined to the next; the caps are fanned. A closed, capped
+    extrusion is turned to face outward whatever the section's direction (files often get
+    ``ccw`` wrong and rely on ``solid FALSE``); an open one follows ``ccw``.
+    """
+    spine = _numbers(node, "spine", np.array([0.0, 0.0, 0.0, 0.0, 1.0, 0.0]), 3).reshape(-1, 3)
+    default = np.array([1.0, 1.0, 1.0, -1.0, -1.0, -1.0, -1.0, 1.0, 1.0, 1.0])
+    section = _numbers(node, "crossSection", default, 2).reshape(-1, 2)
+    scale = _numbers(node, "scale", np.array([1.0, 1.0]), 2).reshape(-1, 2)
+    orientation = _numbers(node, "orientation", np.array([0.0, 0.0, 1.0, 0.0]), 4)
+    n, m = len(spine), len(section)
+    if n < 2 or m < 2 or not len(scale) or not orientation.size:
+        return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
+    turns = [_rotation(r) for r in _per_spine(orientation.reshape(-1, 4), n)]
+    flat = np.stack([section[:, 0], np.zeros(m), section[:, 1]], axis=1)
+    frames = _spine_frames(spine)
+    rings = []
+    for i, (sx, sz) in enumerate(_per_spine(scale, n)):
+        local = flat * np.array([sx, 1.0, sz])
+        rings.append(spine[i] + (local @ turns[i].T) @ frames[i])
+    vertices = np.concatenate(rings)
+    ring = np.arange(m)
+    a = (np.arange(n - 1)[:, None] * m + ring[:-1]).ravel()
+    b, c, d = a + 1, a + m + 1, a + m
+    faces = [np.stack([a, c, d], 1), np.stack([a, b, c], 1)]
+    closed = np.allclose(section[0], section[-1]) and m >= 4
+    cap = ring[:-1] if closed else ring  # a closed section's last point is its first
+    if _flag(node, "beginCap", True) and len(cap) >= 3:
+        faces.append(_fan(cap)[:, [0, 2, 1]])
+    if _flag(node, "endCap", True) and len(cap) >= 3:
+        faces.append(_fan((n - 1) * m + cap))
+    tri = np.concatenate(faces)
+    tri = _finite_faces(vertices, tri[_distinct(tri)])
+    if closed and _flag(node, "beginCap", True) and _flag(node, "endCap", True) and len(tri):
+        p0, p1, p2 = (vertices[tri[:, k]] for k in range(3))
+        volume = float(np.einsum("ij,ij->i", p0, np.cross(p1, p2)).sum())  # 6 × signed volume
+        return vertices, tri if volume >= 0.0 else tri[:, [0, 2, 1]]
+    return vertices, tri if _flag(node, "ccw", True) else tri[:, [0, 2, 1]]
+
+
 #: Geometry nodes without a surface (lines, points): left out without a warning.
 _NO_SURFACE = {"IndexedLineSet", "PointSet"}
 
@@ -815,6 +912,7 @@ _GEOMETRY = {
     "Cylinder": _cylinder,
     "Cone": _cone,
     "Sphere": _sphere,
+    "Extrusion": _extrusion,
 }
 
 

@@ -346,12 +346,12 @@ def test_unread_vrml_geometry_is_a_warning_naming_it(tmp_path):
     path = tmp_path / "x.wrl"
     path.write_text(
         "#VRML V2.0 utf8\nShape { geometry Box {} }\n"
-        "Shape { geometry Extrusion { spine [0 0 0, 0 1 0] } }\n"
-        "Shape { geometry Extrusion { spine [0 0 0, 0 2 0] } }\n"
+        'Shape { geometry Text { string "A" } }\n'
+        'Shape { geometry Text { string "B" } }\n'
     )
-    with pytest.warns(InputWarning, match=r"x\.wrl:3: Extrusion geometry is not read") as seen:
+    with pytest.warns(InputWarning, match=r"x\.wrl:3: Text geometry is not read") as seen:
         parts = load_model(path)
-    assert len(parts) == 1 and len([w for w in seen if "Extrusion" in str(w.message)]) == 1
+    assert len(parts) == 1 and len([w for w in seen if "Text" in str(w.message)]) == 1
 
 
 def test_absurdly_large_coordinates_do_not_overflow_the_zero_area_check(tmp_path):

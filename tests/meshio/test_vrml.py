@@ -189,6 +189,52 @@ def test_elevation_grid_faces_up():
     np.testing.assert_allclose(bounds([part]), [[0, 0, 0], [4, 1, 1]])
 
 
+def signed_volume(part) -> float:
+    tri = part.vertices[part.faces]
+    return float(np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum()) / 6.0
+
+
+def test_default_extrusion_is_a_box_with_outward_faces():
+    """VRML97's default Extrusion: a 2 × 2 square swept from y = 0 to 1, both ends capped."""
+    (part,) = parse(shape("Extrusion {}"))
+    np.testing.assert_allclose(bounds([part]), [[-1, 0, -1], [1, 1, 1]])
+    assert normals_areas(part)[1].sum() == pytest.approx(2 * 4 + 4 * 2)
+    assert signed_volume(part) == pytest.approx(4.0)
+    assert_outward(part, [0, 0.5, 0])
+
+
+def test_extrusion_places_the_cross_section_across_the_spine():
+    """A straight spine along z: +y turned onto it takes the section's z onto -y; the scale
+    and the orientation act in the section's plane before it is placed."""
+    (part,) = parse(shape("Extrusion { spine [0 0 0, 0 0 3] scale 0.5 2 }"))
+    np.testing.assert_allclose(bounds([part]), [[-0.5, -2, 0], [0.5, 2, 3]], atol=1e-12)
+    assert signed_volume(part) == pytest.approx(1.0 * 4.0 * 3.0)
+    turned = "Extrusion { orientation 0 1 0 1.5707963 crossSection [2 1, 2 -1, -2 -1, -2 1, 2 1] }"
+    (part,) = parse(shape(turned))
+    np.testing.assert_allclose(bounds([part]), [[-1, 0, -2], [1, 1, 2]], atol=1e-6)
+
+
+def test_an_extrusion_along_a_closed_spine_is_a_ring_facing_out():
+    """A circle swept round a circle (a torus of radii 1 and 0.2): its volume is 2π² R r²
+    less the polygons' shortfall, positive (faces outward), every vertex on the tube."""
+    t = np.linspace(0.0, 2.0 * np.pi, 33)
+    section = ", ".join(f"{0.2 * np.cos(a):.6f} {0.2 * np.sin(a):.6f}" for a in t)
+    spine = ", ".join(f"{np.cos(a):.6f} 0 {np.sin(a):.6f}" for a in t)
+    (part,) = parse(shape(f"Extrusion {{ crossSection [{section}] spine [{spine}] }}"))
+    radius = np.hypot(part.vertices[:, 0], part.vertices[:, 2])
+    tube = np.hypot(radius - 1.0, part.vertices[:, 1])
+    assert np.abs(tube - 0.2).max() < 0.01
+    assert signed_volume(part) == pytest.approx(2 * np.pi**2 * 0.04, rel=0.03)
+
+
+def test_an_open_extrusion_follows_ccw():
+    (part,) = parse(shape("Extrusion { beginCap FALSE endCap FALSE }"))
+    assert len(part.faces) == 8
+    assert_outward(part, [0, 0.5, 0])
+    (inside,) = parse(shape("Extrusion { beginCap FALSE endCap FALSE ccw FALSE }"))
+    np.testing.assert_array_equal(inside.faces, part.faces[:, [0, 2, 1]])
+
+
 # -- IndexedFaceSet -----------------------------------------------------------------------------
 
 
