@@ -681,8 +681,50 @@ def _indexed_face_set(node: _Node) -> tuple[np.ndarray, np.ndarray]:
             f"IndexedFaceSet coordIndex {bad[0]:g} is outside its "
             f"{len(points)} points; fix the model file",
         )
-    faces = _finite_faces(points, _fan(index))
+    convex = _flag(node, "convex", True)
+    faces = _finite_faces(points, _fan(index) if convex else _ear_cut(points, index))
     return points, faces if _flag(node, "ccw", True) else faces[:, [0, 2, 1]]
+
+
+def _ear_cut(points: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """Triangles of ``-1``-separated polygons that may be concave (``convex FALSE``).
+
+    Polygons are grouped by corner count; a convex one (every corner turning the way of its
+    Newell normal) is fanned, a concave one projected on the plane of its normal's largest
+    component and cut into ears (mapbox-earcut), each triangle turned as the polygon winds.
+    """
+    import mapbox_earcut
+
+    index = np.asarray(index, dtype=np.int64)
+    polygons = [p[p >= 0] for p in np.split(index, np.flatnonzero(index == -1))]
+    groups: dict[int, list[np.ndarray]] = {}
+    for polygon in polygons:
+        groups.setdefault(len(polygon), []).append(polygon)
+    out = [np.zeros((0, 3), dtype=np.int64)]
+    for size, group in groups.items():
+        if size < 3:
+            continue
+        block = np.array(group)
+        corners = points[block]
+        ahead = np.roll(corners, -1, axis=1)
+        normal = np.cross(corners, ahead).sum(axis=1)  # Newell: twice the area vector
+        edge = ahead - corners
+        with np.errstate(invalid="ignore"):
+            turn = np.einsum("pkc,pc->pk", np.cross(edge, np.roll(edge, -1, axis=1)), normal)
+        convex = np.all(turn >= 0.0, axis=1) | (size == 3)
+        fan = np.arange(1, size - 1)
+        out.append(np.stack([block[convex][:, np.zeros_like(fan)], block[convex][:, fan],
+                             block[convex][:, fan + 1]], axis=2).reshape(-1, 3))  # fmt: skip
+        for polygon, spot, n in zip(block[~convex], corners[~convex], normal[~convex], strict=True):
+            keep = [k for k in range(3) if k != int(np.argmax(np.abs(n)))]
+            ears = mapbox_earcut.triangulate_float64(
+                np.ascontiguousarray(spot[:, keep]), np.array([size], np.uint32)
+            ).reshape(-1, 3)
+            tri = spot[ears]
+            back = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]) @ n < 0
+            out.append(polygon[np.where(back[:, None], ears[:, [0, 2, 1]], ears)])
+    faces = np.concatenate(out)
+    return faces[_distinct(faces)]
 
 
 def _finite_faces(points: np.ndarray, faces: np.ndarray) -> np.ndarray:

@@ -238,6 +238,25 @@ def test_an_open_extrusion_follows_ccw():
 # -- IndexedFaceSet -----------------------------------------------------------------------------
 
 
+@pytest.mark.parametrize("plane", ["xy", "yz"])
+def test_concave_polygons_are_cut_into_ears_where_the_file_says_convex_false(plane):
+    """An M-shaped pentagon (area 2.5) and a triangle: with ``convex FALSE`` the triangles
+    cover the polygon exactly, all turned as it winds; fanned (the default, as VRML97 allows
+    for convex polygons) the notch is covered twice over, one triangle turned back."""
+    outline = np.array([[0, 0], [2, 0], [2, 2], [1, 0.5], [0, 2], [3, 0], [4, 0], [3, 1]])
+    flat = np.zeros((len(outline), 1))
+    points = np.hstack([outline, flat]) if plane == "xy" else np.hstack([flat, outline])
+    coord = ", ".join(" ".join(f"{v:g}" for v in p) for p in points)
+    body = f"coord Coordinate {{ point [{coord}] }} coordIndex [0 1 2 3 4 -1, 5 6 7]"
+    (part,) = parse(shape(f"IndexedFaceSet {{ convex FALSE {body} }}"))
+    normals, areas = normals_areas(part)
+    axis = 2 if plane == "xy" else 0
+    assert areas.sum() == pytest.approx(2.5 + 0.5)
+    assert np.all(normals[:, axis] > 0.999)
+    (fanned,) = parse(shape(f"IndexedFaceSet {{ {body} }}"))
+    assert (normals_areas(fanned)[0][:, axis] < 0).sum() == 1
+
+
 def test_polygons_are_fan_triangulated_and_degenerate_faces_dropped():
     ifs = (
         "IndexedFaceSet { coord Coordinate { point [0 0 0, 1 0 0, 1 1 0, 0 1 0, -1 0.5 0] }"
