@@ -712,9 +712,8 @@ def _ear_cut(points: np.ndarray, index: np.ndarray) -> np.ndarray:
         with np.errstate(invalid="ignore"):
             turn = np.einsum("pkc,pc->pk", np.cross(edge, np.roll(edge, -1, axis=1)), normal)
         convex = np.all(turn >= 0.0, axis=1) | (size == 3)
-        fan = np.arange(1, size - 1)
-        out.append(np.stack([block[convex][:, np.zeros_like(fan)], block[convex][:, fan],
-                             block[convex][:, fan + 1]], axis=2).reshape(-1, 3))  # fmt: skip
+        ends = np.full((int(convex.sum()), 1), -1)
+        out.append(_fan(np.hstack([block[convex], ends]).ravel()))
         for polygon, spot, n in zip(block[~convex], corners[~convex], normal[~convex], strict=True):
             keep = [k for k in range(3) if k != int(np.argmax(np.abs(n)))]
             ears = mapbox_earcut.triangulate_float64(
