@@ -15,11 +15,6 @@ from .track import parse_pings
 if TYPE_CHECKING:
     from ..inversion.solver import BeamProfile
 
-#: Looks below which the profiles' summary points to ``--method surface``: on the bathymetry
-#: bench's single-look seabeds the profiles score 1.02-1.34 × the relief std (the first
-#: return's flat seabed: 1.02-1.33), the surface 0.50-1.22 (boulders aside: 1.78 and 2.64).
-SPECKLED_LOOKS = 4.0
-
 
 def _looks(text: str) -> float | str | None:
     """``--looks``: a number > 0, ``auto`` or ``none``."""
@@ -93,11 +88,13 @@ def add_parser(sub: Any) -> None:
     )
     inv.add_argument(
         "--method",
-        choices=("profiles", "surface"),
-        default="profiles",
-        help="profiles (default): one elevation profile per ping from one side; surface: one "
-        "smooth surface fitted to every ping of both sides (where the image has both) with a "
-        "speckle likelihood, into DIR/port/ and DIR/starboard/ with elevation_std.exr (and "
+        choices=("auto", "profiles", "surface"),
+        default="auto",
+        help="auto (default): surface for a speckled image (every real recording; estimated "
+        "looks below 60) where this machine can afford it, else profiles, saying which and why; "
+        "profiles: one elevation profile per ping from one side; surface: one smooth surface "
+        "fitted to every ping of both sides (where the image has both) with a speckle "
+        "likelihood, into DIR/port/ and DIR/starboard/ with elevation_std.exr (and "
         "DIR/elevation_std.tif for XTF input); see docs/inversion.md",
     )
     inv.add_argument(
@@ -206,12 +203,15 @@ def run(args: argparse.Namespace) -> int:
         return _invert_xtf(args)
     _check_output_dir(Path(args.output), ())
     pixels = _check_image_size(Path(args.image), args.force)
+    if args.method == "auto":
+        _choose_method(args, [_image_sides(args)])
     if pixels:
         check_cost(pixels, f"inverting {Path(args.image).name}", "crop the image (fewer pings or "
                    "range bins) and invert it in parts", args)  # fmt: skip
     if args.method == "surface":
         return _invert_surface(args)
     _refuse_coarsen(args)
+    from ..inversion.method import SPECKLED_LOOKS
     from ..inversion.solver import BeamProfile, invert
     from ..inversion.write import energy_summary, write_products
 
@@ -244,7 +244,7 @@ def run(args: argparse.Namespace) -> int:
         for line in energy_summary(result):
             print(line)
         looks = result.settings.get("looks")
-        if looks is not None and looks < SPECKLED_LOOKS:
+        if looks is not None and looks < SPECKLED_LOOKS:  # --method profiles on speckle
             print(
                 f"note: a speckled image (about {looks:.3g} looks): per-ping profiles recover "
                 "little relief beyond the first return; --method surface fits one surface to "
@@ -253,6 +253,51 @@ def run(args: argparse.Namespace) -> int:
         for path in written:
             print(f"wrote {path}")
     return 0
+
+
+def _choose_method(args: argparse.Namespace, lines: list[dict[str, Any]]) -> None:
+    """Resolve ``--method auto`` in ``args`` for these lines' sides, and say which and why.
+
+    ``--flat-prior`` and ``--looks none`` are the profiles' options, ``--coarsen`` the
+    surface fit's; otherwise :func:`..inversion.method.choose_method` decides from the images'
+    speckle and this machine's means.
+    """
+    from ..inversion.method import choose_method
+
+    if args.flat_prior or args.looks is None:
+        args.method = "profiles"
+        reason = "method: profiles (--flat-prior and --looks none are the profiles' options)"
+    elif args.coarsen != 1:
+        args.method = "surface"
+        reason = "method: surface (--coarsen is the surface fit's)"
+    else:
+        looks = args.looks if isinstance(args.looks, float) else None
+        choice = choose_method(lines, looks, args.coarsen)
+        args.method, reason = choice.method, choice.reason
+    if not args.quiet:
+        print(reason, flush=True)
+
+
+def _image_sides(args: argparse.Namespace) -> dict[str, Any]:
+    """The sides of an image the surface fit would take: ``--side``, else every side it has."""
+    from ..inversion.write import exr_sides
+
+    path = Path(args.image)
+    image, got, range_bin = load_side(path, args.side, args.range_bin)
+    sides = {got: image}
+    other = "port" if got == "starboard" else "starboard"
+    if args.side is None and other in exr_sides(path):
+        sides[other] = load_side(path, other, range_bin)[0]
+    return sides
+
+
+def _xtf_sides(recording: tuple, side: str | None) -> dict[str, Any]:
+    """A read XTF file's sides as intensities (samples squared), as ``invert_xtf`` takes them."""
+    import numpy as np
+
+    image = recording[0]
+    chosen = (side,) if side else tuple(image.sides)
+    return {s: np.square(image.sides[s].astype(np.float64)) for s in chosen if s in image.sides}
 
 
 def _invert_surface(args: argparse.Namespace) -> int:
@@ -421,17 +466,7 @@ _PIXEL_BYTES = 64
 #: (2 x 153 600 samples, both sides, GeoTIFFs) 36.0 s, on 2 cores shared with three other
 #: engineers (load 4-5): 4.7e-5 to 1.8e-4 s per pixel; upper-middle.
 _PIXEL_SECONDS = 1e-4
-#: The same for ``--method surface`` (two levels, 8 Gauss-Newton steps, the uncertainty):
-#: unloaded on 2 cores, ``python tools/bench_fit_speed.py --pings 200 --bins 600 --finest 1
-#: --seabed mounds`` (2 x 120 000 pixels) took 41.8-51.5 s on 2026-11-28 (61.0-75.8 s before
-#: that day's changes; the host's speed varies), 1.7e-4 to 2.1e-4 s per pixel; about twice
-#: that, for a loaded machine (earlier, at load 4-6 and before the faster uncertainty, 2.2e-4
-#: to 9e-4).
-_SURFACE_PIXEL_SECONDS = 4e-4
-#: Peak bytes per input pixel of the surface fit: 1.07 GB resident for one of those lines
-#: (240 000 pixels, 4.5 kB each: Jacobians of Z and log R, normal matrices, LU factors, the
-#: model's caches); with a margin.
-_SURFACE_PIXEL_BYTES = 6_000
+#: The surface fit's: :data:`..inversion.method.SURFACE_PIXEL_SECONDS` and ``_BYTES``.
 #: Bytes per sample of an XTF file (16-bit samples; headers make the count an upper bound).
 _XTF_SAMPLE_BYTES = 2
 
@@ -455,17 +490,21 @@ def check_cost(pixels: int, what: str, lower: str, args: argparse.Namespace) -> 
         ``force`` and ``quiet``.
     """
     from .._progress import ANNOUNCE_S, Estimate, announce, check_job
+    from ..inversion import method
 
+    # --method auto is checked as profiles (the cheaper) until it is resolved
     surface = getattr(args, "method", "profiles") == "surface"
     # a coarser surface fit works on N x N fewer pixels (its products are still at every pixel)
     per_pixel = (
-        _SURFACE_PIXEL_SECONDS / getattr(args, "coarsen", 1) ** 2 if surface else _PIXEL_SECONDS
+        method.SURFACE_PIXEL_SECONDS / getattr(args, "coarsen", 1) ** 2
+        if surface
+        else _PIXEL_SECONDS
     )
     estimate = Estimate(
         what,
         {"pixels": float(pixels)},
         seconds=per_pixel * pixels,
-        memory=float(_SURFACE_PIXEL_BYTES if surface else _PIXEL_BYTES) * pixels,
+        memory=float(method.SURFACE_PIXEL_BYTES if surface else _PIXEL_BYTES) * pixels,
     )
     check_job(estimate, lower, force=args.force)
     if not args.quiet and estimate.seconds >= ANNOUNCE_S:
@@ -597,6 +636,11 @@ def _invert_lines(args: argparse.Namespace) -> int:
             f"{ml.describe_lines(lines)}: several lines need two or more; invert a single "
             "line without --lines or --line-pings"
         )
+    if args.method == "auto":
+        _choose_method(args, [line.sides for line in lines])
+        if args.method == "surface" and not args.pings and all(sizes):
+            check_cost(sum(s for s in sizes if s), f"inverting {len(args.image)} XTF files",
+                       "invert fewer files or pings at a time", args)  # fmt: skip
     options = _line_options(args, BeamProfile)
     results = ml.invert_lines(
         lines, method=args.method, altitude=args.altitude, progress=not args.quiet, **options
@@ -746,9 +790,17 @@ def _invert_xtf(args: argparse.Namespace) -> int:
 
     out = Path(args.output)
     samples = None if args.pings else _xtf_samples(Path(args.image))  # a crop: not sized
+    what = f"inverting {Path(args.image).name} (samples from its size)"
     if samples:
-        check_cost(samples, f"inverting {Path(args.image).name} (samples from its size)",
-                   "invert fewer pings at a time (--pings A:B)", args)  # fmt: skip
+        check_cost(samples, what, "invert fewer pings at a time (--pings A:B)", args)
+    recording = None
+    if args.method == "auto":  # read here to choose, and handed on
+        from ..io.xtf import read_xtf
+
+        recording = read_xtf(args.image, parse_pings(args.pings))
+        _choose_method(args, [_xtf_sides(recording, args.side)])
+        if args.method == "surface" and samples:
+            check_cost(samples, what, "invert fewer pings at a time (--pings A:B)", args)
     result = invert_xtf(
         args.image,
         pings=parse_pings(args.pings),
@@ -757,6 +809,7 @@ def _invert_xtf(args: argparse.Namespace) -> int:
         ping_spacing=args.ping_spacing,
         progress=not args.quiet,
         method=args.method,
+        recording=recording,
         **_line_options(args, BeamProfile),
     )
     image, nav = result.image, result.navigation

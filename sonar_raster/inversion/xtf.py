@@ -125,6 +125,7 @@ def invert_xtf(
     amplitude: bool = True,
     progress: bool = False,
     method: str = "profiles",
+    recording: tuple | None = None,
     **options,
 ) -> XtfInversion:
     """Read an XTF file, track the bottom and invert each side.
@@ -151,6 +152,8 @@ def invert_xtf(
     method : {"profiles", "surface"}
         ``"profiles"``: :func:`.solver.invert` per side; ``"surface"``: one surface for both
         sides (:func:`.surface.invert_lines`, with ``elevation_std``).
+    recording : tuple, optional
+        ``read_xtf(path, pings)`` already done (image, navigation): the file is not read again.
     **options
         Passed to :func:`.solver.invert` (``max_iter``, ``levels``, ``tol``,
         ``beam``); for ``"surface"`` only ``max_iter``, ``looks``, ``beam`` and ``finest``.
@@ -162,7 +165,7 @@ def invert_xtf(
     from .bottom import blanking_bins
     from .solver import invert
 
-    image, nav = read_xtf(path, pings)
+    image, nav = read_xtf(path, pings) if recording is None else recording
     dr = image.sonar.range_bin
     track = track_bottom(image.sides, dr)
     alt = np.full(image.shape[0], float(altitude)) if altitude else track.altitude

@@ -172,10 +172,11 @@ def test_the_surface_fit_is_sized_at_its_own_rate(tmp_path, capsys, monkeypatch)
     """``--method surface`` costs several times the per-ping method per pixel: its estimate
     uses its own rate, so a job the profiles would run is refused for the surface fit."""
     from sonar_raster.cli import invert as invert_cli
+    from sonar_raster.inversion import method
 
     np.save(tmp_path / "img.npy", np.ones((40, 64), np.float32))
     monkeypatch.setattr(invert_cli, "_PIXEL_SECONDS", 0.1)  # 2560 px: 4 min, runs
-    monkeypatch.setattr(invert_cli, "_SURFACE_PIXEL_SECONDS", 2.0)  # 85 min: refused
+    monkeypatch.setattr(method, "SURFACE_PIXEL_SECONDS", 2.0)  # 85 min: refused
     cmd = ["invert", str(tmp_path / "img.npy"), "--range-bin", "0.1", "-o", str(tmp_path / "o")]
     assert main([*cmd, "--method", "surface", "-q"]) == 2
     line = one_error_line(capsys.readouterr().err)

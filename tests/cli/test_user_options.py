@@ -187,14 +187,31 @@ def test_render_reuses_a_recorded_track(tmp_path, capsys):
     assert np.array_equal(np.isfinite(altitude), np.isfinite(nav.altitude))
 
 
-def test_invert_points_a_speckled_image_to_the_surface_method(tmp_path, capsys):
+def test_invert_chooses_the_surface_fit_for_a_speckled_image(tmp_path, capsys):
+    """``--method auto`` (the default) fits one surface to a speckled image, profiles to a
+    clean one, and says which; ``--method profiles`` on speckle points to the surface."""
     rng = np.random.default_rng(0)
     k = np.arange(256)
     clean = np.where(k >= 60, 40.0 / np.maximum(k - 20.0, 1.0), 0.0) * np.ones((40, 1))
-    notes = []
-    for name, image in (("clean", clean), ("speckled", clean * rng.exponential(size=clean.shape))):
+    speckled = clean * rng.exponential(size=clean.shape)
+    runs = {}
+    for name, image, extra in (
+        ("clean", clean, []),
+        ("speckled", speckled, []),
+        ("profiles", speckled, ["--method", "profiles"]),
+        ("none", speckled, ["--looks", "none"]),
+    ):
         np.save(tmp_path / f"{name}.npy", image)
-        args = ["invert", str(tmp_path / f"{name}.npy"), "--range-bin", "0.05"]
+        args = ["invert", str(tmp_path / f"{name}.npy"), "--range-bin", "0.05", *extra]
         assert main([*args, "-o", str(tmp_path / name), "--no-mesh", "--no-previews"]) == 0
-        notes.append([line for line in capsys.readouterr().out.splitlines() if "note:" in line])
-    assert notes[0] == [] and "--method surface" in notes[1][0]
+        out = capsys.readouterr().out.splitlines()
+        settings = json.loads((tmp_path / name / "inversion.json").read_text())["settings"]
+        runs[name] = (out, "finest" in settings)  # the surface fit records its pooling
+    chosen = {name: [line for line in out if line.startswith("method:")] for name, (out, _) in
+              runs.items()}  # fmt: skip
+    assert chosen["clean"][0].startswith("method: profiles") and not runs["clean"][1]
+    assert chosen["speckled"][0].startswith("method: surface") and runs["speckled"][1]
+    assert "about 1" in chosen["speckled"][0]  # one look, estimated
+    assert chosen["profiles"] == [] and not runs["profiles"][1]
+    assert any("--method surface" in line for line in runs["profiles"][0] if "note:" in line)
+    assert chosen["none"][0].startswith("method: profiles") and not runs["none"][1]

@@ -477,7 +477,8 @@ def test_cli_surface_method_writes_both_sides_with_their_std(tmp_path):
     assert doc["settings"]["finest"] == 2
     shapes = [read_pixels(d / "port" / "elevation.exr")[0].shape for d in (out, coarse)]
     assert shapes[0] == shapes[1]
-    profiles = ["invert", str(image), "--coarsen", "2", "-q", "-o", str(tmp_path / "other")]
+    profiles = ["invert", str(image), "--method", "profiles", "--coarsen", "2", "-q", "-o"]
+    profiles.append(str(tmp_path / "other"))
     assert main(profiles) == 2  # the profile method's pyramid is --levels
     assert not (tmp_path / "other").exists()
 
