@@ -91,7 +91,7 @@ def add_parser(sub: Any) -> None:
         choices=("auto", "profiles", "surface"),
         default="auto",
         help="auto (default): surface for a speckled image (every real recording; estimated "
-        "looks below 60) where this machine can afford it, else profiles, saying which and why; "
+        "looks below 40) where this machine can afford it, else profiles, saying which and why; "
         "profiles: one elevation profile per ping from one side; surface: one smooth surface "
         "fitted to every ping of both sides (where the image has both) with a speckle "
         "likelihood, into DIR/port/ and DIR/starboard/ with elevation_std.exr (and "
@@ -114,9 +114,8 @@ def add_parser(sub: Any) -> None:
     inv.add_argument(
         "--levels",
         type=cli_positive(int),
-        default=3,
         metavar="N",
-        help="pyramid levels (default 3)",
+        help="profiles: pyramid levels (default 3)",
     )
     inv.add_argument(
         "--coarsen",
@@ -130,8 +129,8 @@ def add_parser(sub: Any) -> None:
     inv.add_argument(
         "--tol",
         type=cli_positive(float),
-        default=1e-2,
-        help="stop a level when E falls by less than TOL x E in an iteration (default 1e-2)",
+        help="profiles: stop a level when E falls by less than TOL x E in an iteration "
+        "(default 1e-2)",
     )
     inv.add_argument(
         "--beam",
@@ -160,16 +159,14 @@ def add_parser(sub: Any) -> None:
     inv.add_argument(
         "--relief-std",
         type=cli_positive(float),
-        default=0.1,
         metavar="METRES",
-        help="relief about the flat seabed assumed on speckled images (default 0.1)",
+        help="profiles: relief about the flat seabed assumed on speckled images (default 0.1)",
     )
     inv.add_argument(
         "--slope-std",
         type=cli_positive(float),
-        default=0.2,
         metavar="S",
-        help="seabed slope (rise over run) assumed on speckled images (default 0.2)",
+        help="profiles: seabed slope (rise over run) assumed on speckled images (default 0.2)",
     )
     inv.add_argument("--no-mesh", action="store_true", help="skip seabed.glb and seabed.ply")
     inv.add_argument("--no-previews", action="store_true", help="skip the preview renders")
@@ -223,13 +220,9 @@ def run(args: argparse.Namespace) -> int:
         altitude=args.altitude,
         ping_spacing=args.ping_spacing,
         max_iter=args.max_iter,
-        levels=args.levels,
-        tol=args.tol,
         beam=beam,
-        flat_prior=args.flat_prior or 0.0,
         looks=args.looks,
-        relief_std=args.relief_std,
-        slope_std=args.slope_std,
+        **_given(args, PROFILE_OPTIONS),  # the others at the solver's defaults
         progress=not args.quiet,
     )
     written = write_products(
@@ -255,18 +248,44 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+#: Options of the per-ping profiles alone (None unless given): ``--method auto`` takes them as
+#: a choice of the profiles, ``--method surface`` refuses them.
+PROFILE_OPTIONS = ("flat_prior", "levels", "tol", "relief_std", "slope_std")
+
+
+def _given(args: argparse.Namespace, names: tuple[str, ...]) -> dict[str, Any]:
+    """The options among ``names`` the user gave (not None)."""
+    return {name: getattr(args, name) for name in names if getattr(args, name) is not None}
+
+
+def _profile_flags(args: argparse.Namespace) -> list[str]:
+    """The :data:`PROFILE_OPTIONS` given, as their flags."""
+    return [f"--{name.replace('_', '-')}" for name in _given(args, PROFILE_OPTIONS)]
+
+
+def _refuse_profile_options(args: argparse.Namespace) -> None:
+    """Refuse :data:`PROFILE_OPTIONS` for the surface fit: they are the profiles' alone."""
+    given = _profile_flags(args)
+    if given:
+        raise SonarRasterError(
+            f"{', '.join(given)}: not used by --method surface (the profiles' options); "
+            "leave them out, or give --method profiles"
+        )
+
+
 def _choose_method(args: argparse.Namespace, lines: list[dict[str, Any]]) -> None:
     """Resolve ``--method auto`` in ``args`` for these lines' sides, and say which and why.
 
-    ``--flat-prior`` and ``--looks none`` are the profiles' options, ``--coarsen`` the
-    surface fit's; otherwise :func:`..inversion.method.choose_method` decides from the images'
-    speckle and this machine's means.
+    :data:`PROFILE_OPTIONS` and ``--looks none`` pick the profiles, ``--coarsen`` the surface
+    fit; otherwise :func:`..inversion.method.choose_method` decides from the images' speckle
+    and this machine's means.
     """
     from ..inversion.method import choose_method
 
-    if args.flat_prior or args.looks is None:
+    given = _profile_flags(args)
+    if given or args.looks is None:
         args.method = "profiles"
-        reason = "method: profiles (--flat-prior and --looks none are the profiles' options)"
+        reason = f"method: profiles ({', '.join(given) or '--looks none'}: the profiles' options)"
     elif args.coarsen != 1:
         args.method = "surface"
         reason = "method: surface (--coarsen is the surface fit's)"
@@ -308,8 +327,7 @@ def _invert_surface(args: argparse.Namespace) -> int:
     from ..inversion.write import exr_sides, product_jobs
     from ..io.commit import commit
 
-    if args.flat_prior:
-        raise SonarRasterError("--flat-prior is not used by --method surface; leave it out")
+    _refuse_profile_options(args)
     path = Path(args.image)
     sides, range_bin = {}, args.range_bin
     image, got, range_bin = load_side(path, args.side, range_bin)
@@ -680,8 +698,7 @@ def _line_options(args: argparse.Namespace, beam_profile: Any) -> dict[str, Any]
     Profiles: the solver's; surface: looks, max_iter and the calibrated beam of ``--beam``.
     """
     if args.method == "surface":
-        if args.flat_prior:
-            raise SonarRasterError("--flat-prior is not used by --method surface; leave it out")
+        _refuse_profile_options(args)
         beam = surface_beam(args.beam) if args.beam else None
         return {
             "max_iter": args.max_iter,
@@ -691,9 +708,7 @@ def _line_options(args: argparse.Namespace, beam_profile: Any) -> dict[str, Any]
         }
     _refuse_coarsen(args)
     options: dict[str, Any] = {"max_iter": args.max_iter, "looks": args.looks}
-    for name in ("levels", "tol", "flat_prior", "relief_std", "slope_std"):
-        if getattr(args, name) is not None:
-            options[name] = getattr(args, name)
+    options.update(_given(args, PROFILE_OPTIONS))
     if args.beam:
         options["beam"] = beam_profile.load(args.beam)
     return options

@@ -16,9 +16,10 @@ from dataclasses import dataclass
 import numpy as np
 
 #: Estimated looks below which an image counts as speckled: above the most the surface fit
-#: trusts (``surface.solve.MAX_LOOKS``, 30), below the fewest a clean bench render gave (156;
-#: real recordings and the default render 2.9-4.0).
-SPECKLED_LOOKS = 60.0
+#: trusts (``surface.solve.MAX_LOOKS``, 30; the bench at 30 looks reads 19-30), below the
+#: fewest a clean render read (the bench's boulders 50 on one side, a test's ripples 50; the
+#: real 600 kHz file 2.7-3.0, the default render 3.1-3.2; docs/notes/2026-11-28-auto-method.md).
+SPECKLED_LOOKS = 40.0
 #: Seconds per input pixel of the surface fit (two levels, 8 Gauss-Newton steps, the
 #: uncertainty): unloaded on 2 cores, ``python tools/bench_fit_speed.py --pings 200 --bins 600
 #: --finest 1 --seabed mounds`` (2 x 120 000 pixels) took 41.8-51.5 s on 2026-11-28 (61.0-75.8
@@ -53,23 +54,37 @@ class MethodChoice:
 def image_looks(sides: Mapping[str, np.ndarray]) -> float:
     """Speckle looks of one line's sides: the median of each side's estimate, at least 1.
 
-    Each side's estimate is the smaller of :func:`.priors.estimate_looks` between neighbouring
-    pings and between neighbouring bins, over the lit bins (> 0). Speckle correlated along
-    one axis reads as more looks along it: the default render's (its along-track footprint)
-    gives 6.4-6.6 between pings and 3.0 between bins, the real 600 kHz file's squared samples
-    2.9 / 3.2 (port) and 3.8 / 4.0 (starboard); the bench's clean renders 200 or more both ways.
+    Each side's estimate is the smaller of two that a clean image reads high and speckle reads
+    at its looks (:func:`speckle_looks`): between pings two apart, since an along-track
+    footprint wider than the ping spacing shares speckle between neighbouring pings (the
+    default render reads 6.5 between neighbours, 3.1 two apart); and each bin against the mean
+    of its two neighbours, which passes a range trend or shading but not speckle.
     """
-    from .priors import estimate_looks
-
     found = []
     for image in sides.values():
         a = np.nan_to_num(np.asarray(image, dtype=np.float64), nan=0.0, posinf=0.0, neginf=0.0)
-        if a.ndim == 2 and min(a.shape) >= 2:
-            found.append(min(estimate_looks(a, a > 0), estimate_looks(a.T, a.T > 0)))
+        if a.ndim == 2 and a.shape[0] >= 3 and a.shape[1] >= 3:
+            pings = speckle_looks(a[:-2], a[2:])
+            left, right = a[:, :-2], a[:, 2:]
+            beside = np.where((left > 0) & (right > 0), 0.5 * (left + right), 0.0)  # both lit
+            bins = speckle_looks(a[:, 1:-1], beside, 1.5)
+            found.append(min(pings, bins))
     finite = [v for v in found if math.isfinite(v)]
     if not finite:
-        return math.inf  # identical pings, or a single one: nothing speckles
+        return math.inf  # identical pings, or too few: nothing speckles
     return max(float(np.median(finite)), 1.0)
+
+
+def speckle_looks(a: np.ndarray, b: np.ndarray, spread: float = 2.0) -> float:
+    """Looks L of independent L-look speckle on ``a`` and ``b`` (samples of one mean, > 0).
+
+    ``E[a b] = μ²`` and ``E[(a − b)²] = spread μ² / L`` (2 for two samples, 1.5 for one
+    against the mean of two), so ``L = spread Σ a b / Σ (a − b)²``; ``inf`` where they agree.
+    """
+    keep = (a > 0) & (b > 0)
+    x, y = a[keep], b[keep]
+    diff = float(np.sum((x - y) ** 2))
+    return math.inf if diff <= 0.0 else spread * float(np.sum(x * y)) / diff
 
 
 def choose_method(

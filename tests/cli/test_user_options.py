@@ -215,3 +215,24 @@ def test_invert_chooses_the_surface_fit_for_a_speckled_image(tmp_path, capsys):
     assert chosen["profiles"] == [] and not runs["profiles"][1]
     assert any("--method surface" in line for line in runs["profiles"][0] if "note:" in line)
     assert chosen["none"][0].startswith("method: profiles") and not runs["none"][1]
+
+
+def test_the_profiles_priors_are_refused_by_the_surface_fit_and_choose_the_profiles(
+    tmp_path, capsys
+):
+    rng = np.random.default_rng(1)
+    k = np.arange(128)
+    image = np.where(k >= 30, 20.0 / np.maximum(k - 10.0, 1.0), 0.0) * rng.exponential(
+        size=(24, 128)
+    )
+    np.save(tmp_path / "img.npy", image)
+    base = ["invert", str(tmp_path / "img.npy"), "--range-bin", "0.05", "--no-mesh"]
+    for option in (["--relief-std", "0.05"], ["--slope-std", "0.3"], ["--flat-prior", "0.5"]):
+        out = tmp_path / option[0].strip("-")
+        assert main([*base, "--method", "surface", *option, "-o", str(out)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and option[0] in err[0] and "--method profiles" in err[0]
+        assert not out.exists()
+        # without --method they pick the profiles on this speckled image
+        assert main([*base, "--no-previews", "--max-iter", "2", *option, "-o", str(out)]) == 0
+        assert capsys.readouterr().out.startswith(f"method: profiles ({option[0]}")
