@@ -484,7 +484,6 @@ _PIXEL_BYTES = 64
 #: (2 x 153 600 samples, both sides, GeoTIFFs) 36.0 s, on 2 cores shared with three other
 #: engineers (load 4-5): 4.7e-5 to 1.8e-4 s per pixel; upper-middle.
 _PIXEL_SECONDS = 1e-4
-#: The surface fit's: :data:`..inversion.method.SURFACE_PIXEL_SECONDS` and ``_BYTES``.
 #: Bytes per sample of an XTF file (16-bit samples; headers make the count an upper bound).
 _XTF_SAMPLE_BYTES = 2
 
@@ -656,9 +655,10 @@ def _invert_lines(args: argparse.Namespace) -> int:
         )
     if args.method == "auto":
         _choose_method(args, [line.sides for line in lines])
-        if args.method == "surface" and not args.pings and all(sizes):
-            check_cost(sum(s for s in sizes if s), f"inverting {len(args.image)} XTF files",
-                       "invert fewer files or pings at a time", args)  # fmt: skip
+        if args.method == "surface":  # its own estimate, said before it starts
+            pixels = sum(v.size for line in lines for v in line.sides.values())
+            check_cost(pixels, f"inverting {len(lines)} lines", "invert fewer lines or pings "
+                       "at a time", args)  # fmt: skip
     options = _line_options(args, BeamProfile)
     results = ml.invert_lines(
         lines, method=args.method, altitude=args.altitude, progress=not args.quiet, **options
@@ -805,17 +805,20 @@ def _invert_xtf(args: argparse.Namespace) -> int:
 
     out = Path(args.output)
     samples = None if args.pings else _xtf_samples(Path(args.image))  # a crop: not sized
-    what = f"inverting {Path(args.image).name} (samples from its size)"
     if samples:
-        check_cost(samples, what, "invert fewer pings at a time (--pings A:B)", args)
+        check_cost(samples, f"inverting {Path(args.image).name} (samples from its size)",
+                   "invert fewer pings at a time (--pings A:B)", args)  # fmt: skip
     recording = None
     if args.method == "auto":  # read here to choose, and handed on
         from ..io.xtf import read_xtf
 
         recording = read_xtf(args.image, parse_pings(args.pings))
-        _choose_method(args, [_xtf_sides(recording, args.side)])
-        if args.method == "surface" and samples:
-            check_cost(samples, what, "invert fewer pings at a time (--pings A:B)", args)
+        sides = _xtf_sides(recording, args.side)
+        _choose_method(args, [sides])
+        if args.method == "surface":  # its own estimate, said before it starts
+            pixels = sum(v.size for v in sides.values())
+            check_cost(pixels, f"inverting {Path(args.image).name}", "invert fewer pings at a "
+                       "time (--pings A:B)", args)  # fmt: skip
     result = invert_xtf(
         args.image,
         pings=parse_pings(args.pings),
