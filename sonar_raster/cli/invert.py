@@ -509,8 +509,9 @@ def check_cost(pixels: int, what: str, lower: str, args: argparse.Namespace) -> 
     from .._progress import ANNOUNCE_S, Estimate, announce, check_job
     from ..inversion import method
 
-    # --method auto is checked as profiles (the cheaper) until it is resolved
-    surface = getattr(args, "method", "profiles") == "surface"
+    # --method auto is checked as profiles (the cheaper) and not announced until it is resolved
+    chosen = getattr(args, "method", "profiles")
+    surface = chosen == "surface"
     # a coarser surface fit works on N x N fewer pixels (its products are still at every pixel)
     per_pixel = (
         method.SURFACE_PIXEL_SECONDS / getattr(args, "coarsen", 1) ** 2
@@ -524,7 +525,7 @@ def check_cost(pixels: int, what: str, lower: str, args: argparse.Namespace) -> 
         memory=float(method.SURFACE_PIXEL_BYTES if surface else _PIXEL_BYTES) * pixels,
     )
     check_job(estimate, lower, force=args.force)
-    if not args.quiet and estimate.seconds >= ANNOUNCE_S:
+    if not args.quiet and estimate.seconds >= ANNOUNCE_S and chosen != "auto":
         announce(estimate)
 
 
@@ -655,10 +656,9 @@ def _invert_lines(args: argparse.Namespace) -> int:
         )
     if args.method == "auto":
         _choose_method(args, [line.sides for line in lines])
-        if args.method == "surface":  # its own estimate, said before it starts
-            pixels = sum(v.size for line in lines for v in line.sides.values())
-            check_cost(pixels, f"inverting {len(lines)} lines", "invert fewer lines or pings "
-                       "at a time", args)  # fmt: skip
+        pixels = sum(v.size for line in lines for v in line.sides.values())  # said, checked
+        check_cost(pixels, f"inverting {len(lines)} lines", "invert fewer lines or pings "
+                   "at a time", args)  # fmt: skip
     options = _line_options(args, BeamProfile)
     results = ml.invert_lines(
         lines, method=args.method, altitude=args.altitude, progress=not args.quiet, **options
@@ -815,10 +815,9 @@ def _invert_xtf(args: argparse.Namespace) -> int:
         recording = read_xtf(args.image, parse_pings(args.pings))
         sides = _xtf_sides(recording, args.side)
         _choose_method(args, [sides])
-        if args.method == "surface":  # its own estimate, said before it starts
-            pixels = sum(v.size for v in sides.values())
-            check_cost(pixels, f"inverting {Path(args.image).name}", "invert fewer pings at a "
-                       "time (--pings A:B)", args)  # fmt: skip
+        pixels = sum(v.size for v in sides.values())  # the chosen method's estimate, said
+        check_cost(pixels, f"inverting {Path(args.image).name}", "invert fewer pings at a "
+                   "time (--pings A:B)", args)  # fmt: skip
     result = invert_xtf(
         args.image,
         pings=parse_pings(args.pings),

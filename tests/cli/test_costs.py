@@ -182,3 +182,37 @@ def test_the_surface_fit_is_sized_at_its_own_rate(tmp_path, capsys, monkeypatch)
     line = one_error_line(capsys.readouterr().err)
     assert "2560 pixels" in line and "crop the image" in line
     assert not (tmp_path / "o").exists()
+
+
+def test_an_xtf_file_says_the_estimate_of_the_method_it_chose_once(tmp_path, capsys, monkeypatch):
+    """``--method auto`` checks the file's size as the profiles would without saying it, reads
+    it, chooses, and says the chosen method's estimate from the samples read."""
+    from sonar_raster.cli import invert as invert_cli
+    from sonar_raster.inversion import method
+    from sonar_raster.inversion import xtf as inv_xtf
+
+    if not XTF.is_file():
+        pytest.fail(f"{XTF} is missing: the shared data must sit beside the clone")
+
+    class Stop(Exception):
+        pass
+
+    def stop(*args, **kwargs):
+        raise Stop
+
+    monkeypatch.setattr(inv_xtf, "invert_xtf", stop)  # only the choice and the estimates
+    monkeypatch.setattr(invert_cli, "_PIXEL_SECONDS", 1e-3)  # the file: 16 min as profiles
+    monkeypatch.setattr(method, "SURFACE_PIXEL_SECONDS", 2e-3)  # 31 min as one surface
+    with pytest.raises(Stop):
+        main(["invert", str(XTF), "-o", str(tmp_path / "o")])
+    captured = capsys.readouterr()
+    assert [x for x in captured.out.splitlines() if x.startswith("method:")][0].startswith(
+        "method: surface (a speckled image"
+    )
+    said = [x for x in captured.err.splitlines() if "estimated" in x]
+    pixels = 461 * 1024 * 2  # the pings read, 1024 samples a side
+    memory = pixels * method.SURFACE_PIXEL_BYTES / 2**30
+    assert said == [
+        f"inverting scotsman-iver2.xtf: about {pixels:.2g} pixels; estimated "
+        f"{round(pixels * 2e-3 / 60)} min, {memory:.1f} GiB of memory"
+    ]

@@ -678,7 +678,7 @@ def test_the_fit_reports_every_gauss_newton_step():
         progress=lines.append,
     )
     steps = solve.GAUSS_NEWTON_STEPS
-    for level in ("level 1/2", "level 1/1"):
+    for level in ("level 1/2 (1/2 res.)", "level 2/2 (1/1 res.)"):
         found = [x for x in lines if x.startswith(f"{level}: Gauss-Newton step")]
         assert [x.split("step ")[1].split(",")[0] for x in found] == [
             f"{k}/{steps}" for k in range(1, steps + 1)

@@ -242,7 +242,9 @@ def fit_lines(
     params: np.ndarray | None = None
     previous: Problem | None = None
     energies, evaluations = [], []
-    for f, grid in grids:
+    for k, (f, grid) in enumerate(grids):
+        # "level 2/2 (1/1 res.)": the level's place, then its pooling (as the profiles say)
+        label = f"level {k + 1}/{len(grids)} (1/{f} res.)"
         problem = _level(prepared, frame, grid, f, finest)
         if beam:
             problem.beam_reference = beam_reference(grid, beam)
@@ -257,7 +259,7 @@ def fit_lines(
         previous = problem
         step = None
         if progress is not None:
-            step = partial(_report_step, progress, f"level 1/{f}", start)
+            step = partial(_report_step, progress, label, start)
         if GAUSS_NEWTON_STEPS:
             params, value, count = _gauss_newton(problem, params, GAUSS_NEWTON_STEPS, step)
         else:
@@ -266,7 +268,7 @@ def fit_lines(
         evaluations.append(count)
         if progress is not None:
             progress(
-                f"level 1/{f}: E {value:.6g} after {count} evaluations"
+                f"{label}: E {value:.6g} after {count} evaluations"
                 f" ({time.perf_counter() - start:.0f} s)"
             )
     assert params is not None and previous is not None
