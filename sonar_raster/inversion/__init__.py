@@ -2,6 +2,8 @@
 
 :func:`invert` estimates R, Φ and Z of one side by expectation-maximisation with Gauss-Newton
 steps over a multi-resolution pyramid; :func:`track_bottom` finds the altitude in each ping;
+:func:`choose_method` says whether an image wants the per-ping profiles or one surface
+(``sonar-raster invert --method auto``);
 :func:`write_products` writes an :class:`Inversion` as maps, a mesh and previews;
 :func:`invert_xtf` runs both sides of a real recording and georeferences the result.
 """
@@ -14,6 +16,7 @@ from .._lazy import lazy_exports
 
 if TYPE_CHECKING:
     from .bottom import BottomTrack, track_bottom
+    from .method import MethodChoice, choose_method
     from .shadows import Shadows, find_shadows
     from .solver import BeamProfile, Inversion, invert
     from .write import write_products
@@ -23,8 +26,10 @@ __all__ = [
     "BeamProfile",
     "BottomTrack",
     "Inversion",
+    "MethodChoice",
     "Shadows",
     "XtfInversion",
+    "choose_method",
     "find_shadows",
     "invert",
     "invert_xtf",
@@ -37,6 +42,8 @@ __getattr__, __dir__ = lazy_exports(
     {
         "BottomTrack": "bottom",
         "track_bottom": "bottom",
+        "MethodChoice": "method",
+        "choose_method": "method",
         "Shadows": "shadows",
         "find_shadows": "shadows",
         "BeamProfile": "solver",
