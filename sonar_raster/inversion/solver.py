@@ -144,7 +144,8 @@ class Inversion:
         and ``starts``, one dict per start with ``start``, ``iterations``, ``energy`` (final E)
         and ``stopped`` (``"tol"``, ``"stalled"`` or ``"max_iter"``).
     settings : dict
-        The options the inversion ran with: ``levels``, ``max_iter``, ``tol``,
+        The options the inversion ran with: ``method`` (``"profiles"``, or ``"surface"`` for
+        the surface fit's results, whose other keys are its own), ``levels``, ``max_iter``, ``tol``,
         ``flat_prior``, ``looks`` (the number used, None without priors), ``relief_std``,
         ``slope_std``, ``calibrated`` (Φ fixed from a profile) and ``altitude`` (``"given"`` or
         ``"first return"``).
@@ -369,6 +370,7 @@ def invert(
         coarse = level
     inv = _rescaled(_result(chain[-1], state, ground, valid, energies), scale)
     settings = {
+        "method": "profiles",
         "levels": len(chain),
         "max_iter": max_iter,
         "tol": tol,
