@@ -200,19 +200,24 @@ def run(args: argparse.Namespace) -> int:
         return _invert_xtf(args)
     _check_output_dir(Path(args.output), ())
     pixels = _check_image_size(Path(args.image), args.force)
+    loaded = None  # the sides read to choose, handed on
     if args.method == "auto":
-        _choose_method(args, [_image_sides(args)])
+        loaded = _image_sides(args)
+        _choose_method(args, [loaded[0]])
     if pixels:
         check_cost(pixels, f"inverting {Path(args.image).name}", "crop the image (fewer pings or "
                    "range bins) and invert it in parts", args)  # fmt: skip
     if args.method == "surface":
-        return _invert_surface(args)
+        return _invert_surface(args, loaded)
     _refuse_coarsen(args)
     from ..inversion.method import SPECKLED_LOOKS
     from ..inversion.solver import BeamProfile, invert
     from ..inversion.write import energy_summary, write_products
 
-    image, side, range_bin = load_side(Path(args.image), args.side, args.range_bin)
+    if loaded is None:
+        image, side, range_bin = load_side(Path(args.image), args.side, args.range_bin)
+    else:  # the side load_side took comes first
+        (side, image), range_bin = next(iter(loaded[0].items())), loaded[1]
     beam = BeamProfile.load(args.beam) if args.beam else None
     result = invert(
         image,
@@ -297,17 +302,17 @@ def _choose_method(args: argparse.Namespace, lines: list[dict[str, Any]]) -> Non
         print(reason, flush=True)
 
 
-def _image_sides(args: argparse.Namespace) -> dict[str, Any]:
-    """The sides of an image the surface fit would take: ``--side``, else every side it has."""
+def _image_sides(args: argparse.Namespace) -> tuple[dict[str, Any], float]:
+    """The sides the surface fit takes (``--side``, else all; load_side's first) and the bin."""
     from ..inversion.write import exr_sides
 
     path = Path(args.image)
     image, got, range_bin = load_side(path, args.side, args.range_bin)
     sides = {got: image}
     other = "port" if got == "starboard" else "starboard"
-    if args.side is None and other in exr_sides(path):
+    if args.side is None and other in exr_sides(path):  # the renderer's EXR holds both
         sides[other] = load_side(path, other, range_bin)[0]
-    return sides
+    return sides, range_bin
 
 
 def _xtf_sides(recording: tuple, side: str | None) -> dict[str, Any]:
@@ -319,23 +324,17 @@ def _xtf_sides(recording: tuple, side: str | None) -> dict[str, Any]:
     return {s: np.square(image.sides[s].astype(np.float64)) for s in chosen if s in image.sides}
 
 
-def _invert_surface(args: argparse.Namespace) -> int:
-    """``invert --method surface``: both sides of the image (or ``--side``) in one fit."""
+def _invert_surface(args: argparse.Namespace, loaded: tuple | None = None) -> int:
+    """``invert --method surface``: both sides (or ``--side``) in one fit; ``loaded``: read."""
     import numpy as np
 
     from ..inversion.surface import invert_line
-    from ..inversion.write import exr_sides, product_jobs
+    from ..inversion.write import product_jobs
     from ..io.commit import commit
 
     _refuse_profile_options(args)
-    path = Path(args.image)
-    sides, range_bin = {}, args.range_bin
-    image, got, range_bin = load_side(path, args.side, range_bin)
-    sides[got] = image
-    other = "port" if got == "starboard" else "starboard"
-    if args.side is None and other in exr_sides(path):  # the renderer's EXR holds both
-        sides[other] = load_side(path, other, range_bin)[0]
-    pings = image.shape[0]
+    sides, range_bin = loaded or _image_sides(args)
+    pings = next(iter(sides.values())).shape[0]
     spacing = args.ping_spacing or float(range_bin)
     altitude = None if args.altitude is None else np.full(pings, float(args.altitude))
     results = invert_line(
@@ -511,19 +510,13 @@ def check_cost(pixels: int, what: str, lower: str, args: argparse.Namespace) -> 
 
     # --method auto is checked as profiles (the cheaper) and not announced until it is resolved
     chosen = getattr(args, "method", "profiles")
-    surface = chosen == "surface"
-    # a coarser surface fit works on N x N fewer pixels (its products are still at every pixel)
-    per_pixel = (
-        method.SURFACE_PIXEL_SECONDS / getattr(args, "coarsen", 1) ** 2
-        if surface
-        else _PIXEL_SECONDS
-    )
-    estimate = Estimate(
-        what,
-        {"pixels": float(pixels)},
-        seconds=per_pixel * pixels,
-        memory=float(method.SURFACE_PIXEL_BYTES if surface else _PIXEL_BYTES) * pixels,
-    )
+    if chosen == "surface":
+        estimate = method.surface_estimate(pixels, what, getattr(args, "coarsen", 1))
+    else:
+        estimate = Estimate(
+            what, {"pixels": float(pixels)}, seconds=_PIXEL_SECONDS * pixels,
+            memory=float(_PIXEL_BYTES) * pixels,
+        )  # fmt: skip
     check_job(estimate, lower, force=args.force)
     if not args.quiet and estimate.seconds >= ANNOUNCE_S and chosen != "auto":
         announce(estimate)

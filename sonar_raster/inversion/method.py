@@ -12,8 +12,12 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from .._progress import Estimate
 
 #: Estimated looks below which an image counts as speckled: above the most the surface fit
 #: trusts (``surface.solve.MAX_LOOKS``, 30; the bench at 30 looks reads 19-30), below the
@@ -55,19 +59,22 @@ def image_looks(sides: Mapping[str, np.ndarray]) -> float:
     """Speckle looks of one line's sides: the median of each side's estimate, at least 1.
 
     Each side's estimate is the smaller of two that a clean image reads high and speckle reads
-    at its looks (:func:`speckle_looks`): between pings two apart, since an along-track
+    at its looks (:func:`.priors.looks_between`): between pings two apart, since an along-track
     footprint wider than the ping spacing shares speckle between neighbouring pings (the
     default render reads 6.5 between neighbours, 3.1 two apart); and each bin against the mean
     of its two neighbours, which passes a range trend or shading but not speckle.
     """
+    from .priors import looks_between
+
     found = []
     for image in sides.values():
         a = np.nan_to_num(np.asarray(image, dtype=np.float64), nan=0.0, posinf=0.0, neginf=0.0)
         if a.ndim == 2 and a.shape[0] >= 3 and a.shape[1] >= 3:
-            pings = speckle_looks(a[:-2], a[2:])
-            left, right = a[:, :-2], a[:, 2:]
-            beside = np.where((left > 0) & (right > 0), 0.5 * (left + right), 0.0)  # both lit
-            bins = speckle_looks(a[:, 1:-1], beside, 1.5)
+            lit = (a[:-2] > 0) & (a[2:] > 0)
+            pings = looks_between(a[:-2][lit], a[2:][lit])
+            left, centre, right = a[:, :-2], a[:, 1:-1], a[:, 2:]
+            lit = (left > 0) & (centre > 0) & (right > 0)
+            bins = looks_between(centre[lit], 0.5 * (left + right)[lit], 1.5)
             found.append(min(pings, bins))
     finite = [v for v in found if math.isfinite(v)]
     if not finite:
@@ -75,16 +82,19 @@ def image_looks(sides: Mapping[str, np.ndarray]) -> float:
     return max(float(np.median(finite)), 1.0)
 
 
-def speckle_looks(a: np.ndarray, b: np.ndarray, spread: float = 2.0) -> float:
-    """Looks L of independent L-look speckle on ``a`` and ``b`` (samples of one mean, > 0).
+def surface_estimate(pixels: int, what: str, finest: int = 1) -> Estimate:
+    """The surface fit's time and memory over ``pixels`` input pixels.
 
-    ``E[a b] = μ²`` and ``E[(a − b)²] = spread μ² / L`` (2 for two samples, 1.5 for one
-    against the mean of two), so ``L = spread Σ a b / Σ (a − b)²``; ``inf`` where they agree.
+    ``finest`` (its pooling) divides the time; the products are still at every pixel.
     """
-    keep = (a > 0) & (b > 0)
-    x, y = a[keep], b[keep]
-    diff = float(np.sum((x - y) ** 2))
-    return math.inf if diff <= 0.0 else spread * float(np.sum(x * y)) / diff
+    from .._progress import Estimate
+
+    return Estimate(
+        what,
+        {"pixels": float(pixels)},
+        seconds=SURFACE_PIXEL_SECONDS / max(finest, 1) ** 2 * pixels,
+        memory=float(SURFACE_PIXEL_BYTES) * pixels,
+    )
 
 
 def choose_method(
@@ -106,8 +116,8 @@ def choose_method(
     -------
     MethodChoice
     """
-    from .._budget import SHARE, physical_memory, size_text
-    from .._progress import TIME_LIMIT_S, duration_text
+    from .._progress import check_job
+    from ..errors import SonarRasterError
 
     if looks is None:
         looks = min((image_looks(sides) for sides in lines), default=math.inf)
@@ -120,18 +130,16 @@ def choose_method(
             "elevation profile per ping; --method surface fits one surface instead)",
         )
     pixels = sum(int(np.asarray(a).size) for sides in lines for a in sides.values())
-    seconds = SURFACE_PIXEL_SECONDS / max(finest, 1) ** 2 * pixels
-    memory = float(SURFACE_PIXEL_BYTES) * pixels
-    have = physical_memory()
-    if seconds > TIME_LIMIT_S or memory > SHARE * have:
+    estimate = surface_estimate(pixels, "one surface", finest)
+    try:
+        check_job(estimate, "")  # the limits every job is held to
+    except SonarRasterError:
         return MethodChoice(
             "profiles",
             looks,
-            f"method: profiles (a speckled image, about {shown} looks, but one surface over "
-            f"{pixels:,} pixels would take about {duration_text(seconds)} and "
-            f"{size_text(memory)} of this machine's {size_text(have)}; invert fewer pings at "
-            "a time, e.g. --pings A:B, for the surface fit, which recovers more relief from "
-            "speckle)",
+            f"method: profiles (a speckled image, about {shown} looks, but {estimate.line()}, "
+            "more than this machine allows; invert fewer pings at a time, e.g. --pings A:B, "
+            "for the surface fit, which recovers more relief from speckle)",
         )
     return MethodChoice(
         "surface",

@@ -137,9 +137,16 @@ def estimate_looks(slant: np.ndarray, weight: np.ndarray) -> float:
     it. ``inf`` for identical pings.
     """
     keep = (weight[:-1] > 0) & (weight[1:] > 0)
-    a, b = slant[:-1][keep], slant[1:][keep]
+    return looks_between(slant[:-1][keep], slant[1:][keep])
+
+
+def looks_between(a: np.ndarray, b: np.ndarray, spread: float = 2.0) -> float:
+    """Looks L of independent L-look speckle on paired samples ``a``, ``b`` of one mean.
+
+    ``E[a b] = μ²`` and ``E[(a − b)²] = spread μ² / L`` (2 for two samples, 1.5 for one
+    against the mean of two), so ``L = spread Σ a b / Σ (a − b)²``; ``inf`` where they agree.
+    """
     diff = float(np.sum((a - b) ** 2))
-    same = float(np.sum(a * b))
     if diff <= 0.0:
         return math.inf
-    return 2.0 * same / diff
+    return spread * float(np.sum(a * b)) / diff

@@ -1,7 +1,8 @@
 """Profiles against the surface on the bathymetry bench's one-line seabeds at given looks.
 
-Session 13's ``2026-11-27-robustness/profiles_vs_surface.py`` with the looks as an argument
-(0: clean) and the looks ``method.image_looks`` estimates printed. Run from the repository
+Session 13's ``2026-11-27-robustness/profiles_vs_surface.py`` (now a wrapper of this one)
+with the looks as an argument (0: clean) and the looks ``method.image_looks`` estimates
+printed. Run from the repository
 root: ``python docs/notes/2026-11-28-auto-method/profiles_vs_looks.py 8 sand,mounds,box``.
 """
 
