@@ -9,10 +9,12 @@ its bin, and a model of the nadir return gives its place inside the bin.
    is the mean of L over the ``window`` bins from k on minus the mean over every bin before k:
    the water column before the first return gives the largest score, and an isolated bright
    speck moves the mean of a window only a little. The first local maximum of the score above
-   half the ping's largest is the edge; the ping's own contrast there, in dB, must reach
-   ``min_contrast_db`` or the ping has no clear return. Where L crosses halfway between the
-   water column and the seabed just after the edge (plus half a bin) is the coarse position,
-   off by up to half a bin depending on where the edge lies in its bin.
+   half the ping's largest is the edge, or above ``min_contrast_db`` where the mean over
+   ``SUSTAIN_WINDOWS`` windows after it stays that far above the water too (a weak first
+   return before bright debris, not a layer of fish); the ping's own contrast there, in dB,
+   must reach ``min_contrast_db`` or the ping has no clear return. Where L crosses halfway
+   between the water column and the seabed just after the edge (plus half a bin) is the coarse
+   position, off by up to half a bin depending on where the edge lies in its bin.
 2. Over a flat seabed each bin holds ``∫ G(x) dx`` over the ground ranges ``x = √(r² − h²)`` its
    slant ranges cover, ``G`` the smooth return per metre of ground (beam, reflectivity, grazing
    angle). For trial altitudes h within 1.5 bins of the coarse position, ``ln G`` is fitted by
@@ -66,6 +68,9 @@ SMOOTH_PINGS = 9
 NEAR_BINS = 3
 #: Two sides' detections within this many bins are averaged; further apart, the larger wins.
 AGREE_BINS = 2.0
+#: A step weaker than half the ping's largest is the edge when it reaches the minimum contrast
+#: and the mean over this many windows after it does too (a seabed, not a fish).
+SUSTAIN_WINDOWS = 4
 #: Pings averaged (in log intensity) before detection.
 AVERAGE_PINGS = 5
 #: Gaussian smoothing along range before detection, bins (symmetric: a step stays in place).
@@ -138,8 +143,16 @@ def _own_contrast(logs: np.ndarray, lo: int, edge: np.ndarray, window: int) -> n
     return after - before
 
 
-def _edges(logs: np.ndarray, lo: int, window: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Edge bin, step score (nepers) and water-column level (mean log) per ping."""
+def _edges(
+    logs: np.ndarray, lo: int, window: int, floor: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Edge bin, step score (nepers) and water-column level (mean log) per ping.
+
+    A candidate is a bin whose score reaches half the ping's largest, or ``floor`` (nepers)
+    with the seabed after it staying that much above the water for ``SUSTAIN_WINDOWS``
+    windows: a weak first return followed by a far brighter object or patch (a wreck's
+    debris) is the seabed's, where half the largest step alone passed it over.
+    """
     pings, bins = logs.shape
     c = np.concatenate([np.zeros((pings, 1)), np.cumsum(logs[:, lo:], axis=1)], axis=1)
     # edge after k >= window bins of water (relative to lo): fewer make a noisy water mean
@@ -149,8 +162,10 @@ def _edges(logs: np.ndarray, lo: int, window: int) -> tuple[np.ndarray, np.ndarr
     after = (c[:, k + window] - c[:, k]) / window
     before = c[:, k] / k
     score = after - before
+    end = np.minimum(k + SUSTAIN_WINDOWS * window, bins - lo)
+    sustained = (c[:, end] - c[:, k]) / (end - k) - before
     top = score.max(axis=1)
-    strong = score >= 0.5 * top[:, None]
+    strong = (score >= 0.5 * top[:, None]) | ((score >= floor) & (sustained >= floor))
     first = np.argmax(strong, axis=1)
     rows = np.arange(pings)
     # climb to the local maximum of the first strong run
@@ -386,7 +401,7 @@ def _detect(
     own = _log_image(image)
     logs = ndimage.uniform_filter1d(own, AVERAGE_PINGS, axis=0, mode="nearest")
     lo = blanking_bins(image)
-    edge, score, water = _edges(logs, lo, window)
+    edge, score, water = _edges(logs, lo, window, min_contrast_db / _DB_PER_NEPER)
     # validity from the ping's own samples: averaging lends a lost ping its neighbours' edge
     contrast = _own_contrast(own, lo, edge, window) * _DB_PER_NEPER
     coarse = _coarse(logs, edge, score, water, window)

@@ -104,6 +104,37 @@ def test_object_shortening_one_side_is_ignored():
     assert np.max(np.abs(both.altitude - altitude)) <= BIN
 
 
+def test_a_weak_first_return_before_bright_debris_is_the_seabed():
+    """A dark seabed (reflectivity 0.02) whose first return is a weak step, with bright debris
+    (a 5 cm plate, reflectivity 0.9) 6-11 m out to starboard on 80 pings: the debris's step
+    is over twice the seabed's (6.8 against 2.6 nepers), which moved the track onto the
+    debris (10.6-11.0 m); on the real file such a field beside the wreck moved the starboard
+    track 0.4-0.7 m out for 16 pings. The seabed's step, being sustained, wins."""
+    altitude = 9.33
+    debris = box_from_bounds([[6.0, -4.0, 0.0], [11.0, 4.0, 0.05]], reflectivity=0.9)
+    sides = _render([plane(200.0, reflectivity=0.02), debris], altitude)
+    noisy = _noisy(sides, altitude, np.random.default_rng(11))
+    y = np.arange(PINGS) * 0.1 - 10.0
+    over = (y > -3.5) & (y < 3.5)
+    starboard = track_side(noisy["starboard"], BIN)
+    assert _within_one_bin(starboard.altitude[over], altitude) >= 0.95
+    assert _within_one_bin(track_bottom(noisy, BIN).altitude, altitude) >= 0.99
+
+
+def test_a_fish_layer_in_the_water_column_is_not_the_seabed():
+    """A layer of fish 6 dB over the water column (8 bins deep, 80 pings) 6 m before the
+    seabed: its step passes the minimum contrast but the water resumes after it, so it is not
+    the first return (taken on the step alone, 20 % of those pings were off)."""
+    altitude = 9.33
+    rng = np.random.default_rng(5)
+    image = _noisy(_render([plane(200.0)], altitude), altitude, rng)["starboard"]
+    k = int(altitude / BIN)
+    water = image[:, 40 : k - 10].mean()
+    image[60:140, k - 120 : k - 112] = water * 10**0.6 * rng.exponential(size=(80, 8))
+    track = track_side(image, BIN)
+    assert _within_one_bin(track.altitude, altitude) >= 0.99
+
+
 def _tilted_plane(slope: float, altitude_at_nadir: float) -> MeshPart:
     """Seabed z = -tan(slope) * x (falling to starboard, +x), 200 m square."""
     h = 100.0
