@@ -148,10 +148,12 @@ def _edges(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Edge bin, step score (nepers) and water-column level (mean log) per ping.
 
-    A candidate is a bin whose score reaches half the ping's largest, or ``floor`` (nepers)
-    with the seabed after it staying that much above the water for ``SUSTAIN_WINDOWS``
-    windows: a weak first return followed by a far brighter object or patch (a wreck's
-    debris) is the seabed's, where half the largest step alone passed it over.
+    The edge climbs from the first bin whose score reaches half the ping's largest, or from
+    an earlier one more than a window before it (a distinct step, not the same step's rising
+    score) whose score reaches ``floor`` (nepers) with the mean after it staying that much
+    above the water for ``SUSTAIN_WINDOWS`` windows: a weak first return followed by a far
+    brighter object or patch (a wreck's debris) is the seabed's, where half the largest step
+    alone passed it over.
     """
     pings, bins = logs.shape
     c = np.concatenate([np.zeros((pings, 1)), np.cumsum(logs[:, lo:], axis=1)], axis=1)
@@ -165,8 +167,11 @@ def _edges(
     end = np.minimum(k + SUSTAIN_WINDOWS * window, bins - lo)
     sustained = (c[:, end] - c[:, k]) / (end - k) - before
     top = score.max(axis=1)
-    strong = (score >= 0.5 * top[:, None]) | ((score >= floor) & (sustained >= floor))
-    first = np.argmax(strong, axis=1)
+    first = np.argmax(score >= 0.5 * top[:, None], axis=1)
+    weak = (score >= floor) & (sustained >= floor)
+    early = np.where(weak.any(axis=1), np.argmax(weak, axis=1), len(k))
+    # a distinct step before it, not the same step's rising score (a window long)
+    first = np.where(early < first - window, early, first)
     rows = np.arange(pings)
     # climb to the local maximum of the first strong run
     peak = first.copy()

@@ -135,6 +135,28 @@ def test_a_fish_layer_in_the_water_column_is_not_the_seabed():
     assert _within_one_bin(track.altitude, altitude) >= 0.99
 
 
+@pytest.mark.parametrize("water", [0.0, 0.1])
+def test_the_earlier_step_rule_leaves_a_single_step_alone(flat, water):
+    """A flat seabed's one step: every edge is where half the largest step puts it (the
+    earlier-step rule is off with an unreachable floor). Taken from anywhere on the step's
+    rising score, the climb stopped short on 12-53 % of the pings with water-column noise."""
+    from scipy import ndimage
+
+    from sonar_raster.inversion import bottom
+
+    altitude, sides = flat
+    noisy = _noisy(sides, altitude, np.random.default_rng(7), water)
+    for image in noisy.values():
+        logs = ndimage.uniform_filter1d(
+            bottom._log_image(image), bottom.AVERAGE_PINGS, axis=0, mode="nearest"
+        )
+        lo = bottom.blanking_bins(image)
+        floor = bottom.MIN_CONTRAST_DB / bottom._DB_PER_NEPER
+        with_rule = bottom._edges(logs, lo, bottom.WINDOW_BINS, floor)[0]
+        without = bottom._edges(logs, lo, bottom.WINDOW_BINS, np.inf)[0]
+        np.testing.assert_array_equal(with_rule, without)
+
+
 def _tilted_plane(slope: float, altitude_at_nadir: float) -> MeshPart:
     """Seabed z = -tan(slope) * x (falling to starboard, +x), 200 m square."""
     h = 100.0
