@@ -109,7 +109,8 @@ def add_parser(sub: Any) -> None:
         type=cli_positive(float),
         metavar="METRES",
         help="along-track distance between pings, for the along-track slope (default: the "
-        "ground cell size)",
+        "image's own, ping_spacing_m in its header as render writes it, else the ground cell "
+        "size)",
     )
     inv.add_argument(
         "--levels",
@@ -223,7 +224,7 @@ def run(args: argparse.Namespace) -> int:
         image,
         float(range_bin),
         altitude=args.altitude,
-        ping_spacing=args.ping_spacing,
+        ping_spacing=_ping_spacing(args),
         max_iter=args.max_iter,
         beam=beam,
         looks=args.looks,
@@ -315,6 +316,25 @@ def _image_sides(args: argparse.Namespace) -> tuple[dict[str, Any], float]:
     return sides, range_bin
 
 
+def _ping_spacing(args: argparse.Namespace) -> float | None:
+    """The pings' spacing: ``--ping-spacing``, else the image's own, or None.
+
+    The image's own is ``ping_spacing_m`` in its header (as ``render`` writes it), else its
+    effects' ``ping_spacing_m``.
+    """
+    if args.ping_spacing:
+        return float(args.ping_spacing)
+    from ..io.images import read_spec
+
+    spec = read_spec(args.image)
+    attrs = {} if spec is None else {a.name: a.value for a in spec.extra_attribs}
+    for name in ("sonar_raster:ping_spacing_m", "sonar_raster:effects.ping_spacing_m"):
+        value = _header_float(attrs, name)
+        if value is not None and value > 0:
+            return value
+    return None
+
+
 def _xtf_sides(recording: tuple, side: str | None) -> dict[str, Any]:
     """A read XTF file's sides as intensities (samples squared), as ``invert_xtf`` takes them."""
     import numpy as np
@@ -335,7 +355,7 @@ def _invert_surface(args: argparse.Namespace, loaded: tuple | None = None) -> in
     _refuse_profile_options(args)
     sides, range_bin = loaded or _image_sides(args)
     pings = next(iter(sides.values())).shape[0]
-    spacing = args.ping_spacing or float(range_bin)
+    spacing = _ping_spacing(args) or float(range_bin)
     altitude = None if args.altitude is None else np.full(pings, float(args.altitude))
     results = invert_line(
         sides,

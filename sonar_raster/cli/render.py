@@ -393,9 +393,7 @@ def run(args: argparse.Namespace) -> int:
     if _streamed(args, setup):
         return _render_survey(args, setup, outputs, effects)
     image = _render_image(args, setup)
-    image.metadata.update(
-        {"scene": setup.source, "altitude_m": setup.altitude, "pings": setup.trajectory.n_pings}
-    )
+    image.metadata.update(_track_metadata(setup))
     image.metadata.update(setup.notes)
     if effects is not None:  # no effects: the renderer's image is written as is
         from ..effects.chain import apply_effects
@@ -761,10 +759,25 @@ def _streamed(args: argparse.Namespace, setup: Any) -> bool:
     return args.chunk_pings is not None or cells > _STREAM_CELLS
 
 
+def _track_metadata(setup: Any) -> dict[str, Any]:
+    """The scene, altitude, pings and the pings' spacing for an image's metadata.
+
+    The spacing (metres; left out when the sonar does not move) is what ``invert`` reads back
+    as the image's along-track geometry.
+    """
+    import numpy as np
+
+    track = setup.trajectory
+    meta = {"scene": setup.source, "altitude_m": setup.altitude, "pings": track.n_pings}
+    if track.n_pings >= 2 and np.any(np.diff(track.positions, axis=0)):
+        meta["ping_spacing_m"] = track.typical_spacing
+    return meta
+
+
 def _render_survey(args: argparse.Namespace, setup: Any, outputs: list[Path], effects: Any) -> int:
     from ..rendering.survey import render_survey
 
-    meta = {"scene": setup.source, "altitude_m": setup.altitude, "pings": setup.trajectory.n_pings}
+    meta = _track_metadata(setup)
     meta.update(setup.notes)
     written, summary = render_survey(
         setup.scene,

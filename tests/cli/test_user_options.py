@@ -158,6 +158,26 @@ def test_invert_reads_the_renderers_display_png(tmp_path, capsys):
     assert not out.exists()
 
 
+@pytest.mark.parametrize("extra", [["--no-effects"], []])
+def test_invert_takes_the_ping_spacing_the_render_wrote(tmp_path, capsys, extra):
+    """A render's header says its pings' spacing (with or without effects); ``invert`` takes
+    it for the along-track geometry instead of the ground cell (it took 0.04 m for the default
+    render's 0.05 m); ``--ping-spacing`` still wins."""
+    model = tmp_path / "post.wrl"
+    model.write_text(POST_VRML)
+    exr = tmp_path / "r.exr"
+    args = ["render", str(model), "--pings", "12", "--ping-spacing", "0.13", "--range-bin"]
+    assert main([*args, "0.05", "-o", str(exr), "-q", *extra]) == 0
+    assert float(read_exr(exr)[1]["sonar_raster:ping_spacing_m"]) == pytest.approx(0.13)
+    for given, expected in (([], 0.13), (["--ping-spacing", "0.2"], 0.2)):
+        out = tmp_path / f"inv{len(given)}"
+        base = ["invert", str(exr), "-o", str(out), "-q", "--no-mesh", "--no-previews"]
+        assert main([*base, "--method", "profiles", *given]) == 0
+        doc = json.loads((out / "inversion.json").read_text())
+        assert doc["ping_spacing_m"] == pytest.approx(expected)
+    capsys.readouterr()
+
+
 def test_invert_help_states_the_default_side(capsys):
     with pytest.raises(SystemExit):
         main(["invert", "--help"])
