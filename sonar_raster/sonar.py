@@ -60,13 +60,23 @@ class BeamPattern:
         return cls(np.array([-math.pi, math.pi]), np.ones(2), "uniform")
 
     @classmethod
-    def gaussian(cls, beamwidth_deg: float) -> BeamPattern:
-        """Gaussian two-way pattern whose full width at half power is ``beamwidth_deg``."""
+    def gaussian(cls, beamwidth_deg: float, sidelobe_db: float | None = None) -> BeamPattern:
+        """Gaussian two-way pattern whose full width at half power is ``beamwidth_deg``.
+
+        ``sidelobe_db`` (< 0, two-way, relative to the peak) floors it: a transducer's
+        sidelobes, which a Gaussian main lobe lacks, so that the nadir far off the axis still
+        returns (the first bottom return every side-scan record shows). None: no floor.
+        """
         if not beamwidth_deg > 0:
             raise SonarRasterError("beam width must be > 0 degrees")
+        if sidelobe_db is not None and not (math.isfinite(sidelobe_db) and sidelobe_db < 0):
+            raise SonarRasterError(f"sidelobe level must be < 0 dB, got {sidelobe_db!r}")
         a = np.linspace(-math.pi, math.pi, 3601)
         sigma = math.radians(beamwidth_deg) / (2.0 * math.sqrt(2.0 * math.log(2.0)))
-        return cls(a, np.exp(-0.5 * (a / sigma) ** 2), "gaussian")
+        values = np.exp(-0.5 * (a / sigma) ** 2)
+        if sidelobe_db is not None:
+            values = np.maximum(values, 10.0 ** (sidelobe_db / 10.0))
+        return cls(a, values, "gaussian")
 
     @classmethod
     def sinc(

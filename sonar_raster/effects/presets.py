@@ -101,6 +101,12 @@ class SensorPreset:
         2 = MAX, 4 = RMS); with "max" or "mean" the effects make speckle and noise on a
         sub-sample grid of half the range resolution (the intensity envelope's Nyquist
         spacing for a bandwidth ``1/τ`` or B) and reduce it per bin.
+    sidelobe_db : float
+        Two-way floor of the vertical beam relative to its peak, dB (its sidelobes): -40 dB
+        (-20 dB one way, a line array's far sidelobes) for every preset; no datasheet gives
+        it. Without it a 40-50° Gaussian beam tilted 10° returns nothing from the nadir
+        (-62 dB there), so the first bottom return that side-scan records show, and the
+        bottom tracker reads, was missing (the tracked altitude 0.1-1 m long).
     speckle_looks : float
         Looks per recorded sample (see :class:`~sonar_raster.Effects`); 1 for every preset
         (no datasheet gives it; the real file suggests about 2.5 together with a patchy-seabed
@@ -135,6 +141,7 @@ class SensorPreset:
     far_snr_db: float = 10.0
     headroom_db: float = 12.0
     volume_db: float = -75.0
+    sidelobe_db: float = -40.0
     downsample: str = "off"
     speckle_looks: float = 1.0
     assumed: tuple[str, ...]
@@ -235,7 +242,8 @@ class SensorPreset:
         -------
         Sonar
             Frequency, range sampling, a Gaussian vertical beam whose two-way half-power width
-            is the one-way width / √2, the tilt in radians and the sound speed.
+            is the one-way width / √2 (floored at :attr:`sidelobe_db`), the tilt in radians
+            and the sound speed.
         """
         rng = self.max_ranges_m[0] if max_range is None else float(max_range)
         if range_bin is None:
@@ -243,7 +251,9 @@ class SensorPreset:
                 range_bin = rng / self.range_bins
             else:
                 range_bin = self.range_resolution_m / 2.0
-        beam = BeamPattern.gaussian(self.vertical_beamwidth_deg / math.sqrt(2.0))
+        beam = BeamPattern.gaussian(
+            self.vertical_beamwidth_deg / math.sqrt(2.0), sidelobe_db=self.sidelobe_db
+        )
         return Sonar(
             frequency_hz=self.frequency_hz,
             max_range=rng,
@@ -320,6 +330,7 @@ PRESETS: dict[str, SensorPreset] = {
             max_ranges_m=(100.0, 200.0, 500.0),
             bits=16,
             assumed=(
+                "sidelobe_db",
                 "bandwidth_hz",
                 "horizontal_beamwidth_deg",
                 "vertical_beamwidth_deg",
@@ -352,7 +363,7 @@ PRESETS: dict[str, SensorPreset] = {
             tilt_deg=10.0,
             max_ranges_m=(150.0,),
             bits=16,
-            assumed=("vertical_beamwidth_deg", "max_ranges_m", "tvg"),
+            assumed=("sidelobe_db", "vertical_beamwidth_deg", "max_ranges_m", "tvg"),
             sources=(f"{_DATASONICS}?page=24", f"{_DATASONICS}?page=82"),
             notes=(
                 "Published (System Manual, June 1998): chirp in the 190-210 kHz band (centre "
@@ -376,6 +387,7 @@ PRESETS: dict[str, SensorPreset] = {
             max_ranges_m=(75.0, 150.0),
             bits=16,
             assumed=(
+                "sidelobe_db",
                 "pulse_length_s",
                 "horizontal_beamwidth_deg",
                 "vertical_beamwidth_deg",
@@ -408,6 +420,7 @@ PRESETS: dict[str, SensorPreset] = {
             bits=16,
             far_snr_db=11.0,
             assumed=(
+                "sidelobe_db",
                 "pulse_length_s",
                 "horizontal_beamwidth_deg",
                 "vertical_beamwidth_deg",
@@ -447,6 +460,7 @@ PRESETS: dict[str, SensorPreset] = {
             max_ranges_m=(50.0, 75.0),
             bits=16,
             assumed=(
+                "sidelobe_db",
                 "pulse_length_s",
                 "horizontal_beamwidth_deg",
                 "vertical_beamwidth_deg",
@@ -475,7 +489,7 @@ PRESETS: dict[str, SensorPreset] = {
             tilt_deg=30.0,
             max_ranges_m=(38.1,),
             bits=16,
-            assumed=("pulse_length_s", "tilt_deg", "tvg"),
+            assumed=("sidelobe_db", "pulse_length_s", "tilt_deg", "tvg"),
             sources=(_GARMIN_SIDEVU,),
             notes=(
                 "Published (GT34UHD-TM spec sheet as quoted in the linked issue, a secondary "
@@ -501,6 +515,7 @@ PRESETS: dict[str, SensorPreset] = {
             bits=16,
             sas_resolution_m=0.03,
             assumed=(
+                "sidelobe_db",
                 "frequency_hz",
                 "bandwidth_hz",
                 "vertical_beamwidth_deg",

@@ -353,7 +353,9 @@ def _beam(spec: Any, frequency: float, sound_speed: float, base: Path, where: st
     if kind == "uniform":
         beam = BeamPattern.uniform()
     elif kind == "gaussian":
-        beam = BeamPattern.gaussian(float(_take(spec, "beamwidth_deg", 40.0, number, where)))
+        width = float(_take(spec, "beamwidth_deg", 40.0, number, where))
+        floor = _take(spec, "sidelobe_db", None, number, where)
+        beam = BeamPattern.gaussian(width, None if floor is None else float(floor))
     elif kind == "sinc":
         aperture = float(_take(spec, "aperture_m", 0.02, number, where))
         beam = BeamPattern.sinc(aperture, frequency, sound_speed)

@@ -198,3 +198,22 @@ def test_sinc_beam_uses_the_scene_sound_speed(tmp_path):
         widths[c] = a[np.argmin(beam(a))]
         assert math.sin(widths[c]) == pytest.approx(c / 300e3 / 0.05, rel=2e-3)
     assert widths[1550.0] > widths[1450.0]
+
+
+def test_a_gaussian_beam_takes_a_sidelobe_floor(tmp_path):
+    """``sidelobe_db`` floors a scene's Gaussian beam two-way; a level that is not below the
+    peak is one line naming it."""
+    beams = {}
+    for floor in ("", ", sidelobe_db = -30.0", ", sidelobe_db = 5.0"):
+        path = tmp_path / f"b{len(floor)}.toml"
+        path.write_text(
+            f'[sonar]\nbeam = {{ kind = "gaussian", beamwidth_deg = 30.0{floor} }}\n'
+            '[seabed]\nkind = "flat"\n[trajectory]\npings = 2\n'
+        )
+        if "5.0" in floor:
+            with pytest.raises(SonarRasterError, match="sidelobe level must be < 0 dB, got 5.0"):
+                load_scene_file(path)
+            continue
+        beams[floor] = load_scene_file(path).sonar.beam(np.radians([0.0, 80.0]))
+    assert beams[""][1] < 1e-8 and beams[", sidelobe_db = -30.0"][1] == pytest.approx(1e-3)
+    assert beams[""][0] == beams[", sidelobe_db = -30.0"][0] == 1.0
