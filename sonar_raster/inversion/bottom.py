@@ -71,6 +71,8 @@ AGREE_BINS = 2.0
 #: A step weaker than half the ping's largest is the edge when it reaches the minimum contrast
 #: and the mean over this many windows after it does too (a seabed, not a fish).
 SUSTAIN_WINDOWS = 4
+#: Share of samples exactly 0 from which an image is taken as noise-free (:func:`_log_image`).
+CLEAN_ZEROS = 0.01
 #: Pings averaged (in log intensity) before detection.
 AVERAGE_PINGS = 5
 #: Gaussian smoothing along range before detection, bins (symmetric: a step stays in place).
@@ -126,9 +128,21 @@ def blanking_bins(image: np.ndarray) -> int:
 
 
 def _log_image(image: np.ndarray) -> np.ndarray:
-    """ln(I + ε), smoothed along range; ε = 1e-3 of the median positive intensity."""
+    """ln(I + ε), smoothed along range.
+
+    ε is 1e-3 of the median positive intensity, below any noise floor; in a noise-free image
+    (at least :data:`CLEAN_ZEROS` of its samples exactly 0: water column, shadows) it is 1e-3
+    of the 1st percentile instead, since there the faintest returns are signal (a render's
+    nadir seen through the beam's sidelobes lies near 1e-3 of the median: it was taken for
+    water, and the tracked altitude came out 0.4-1.6 m long).
+    """
     positive = image[image > 0]
-    eps = 1e-3 * float(np.median(positive)) if positive.size else 1.0
+    if not positive.size:
+        eps = 1.0
+    elif positive.size <= (1.0 - CLEAN_ZEROS) * image.size:
+        eps = 1e-3 * float(np.percentile(positive, 1.0))
+    else:
+        eps = 1e-3 * float(np.median(positive))
     return ndimage.gaussian_filter1d(np.log(image + eps), RANGE_SIGMA_BINS, axis=1)
 
 
