@@ -317,7 +317,7 @@ def _image_sides(args: argparse.Namespace) -> tuple[dict[str, Any], float]:
 
 
 def _ping_spacing(args: argparse.Namespace) -> float | None:
-    """The pings' spacing: ``--ping-spacing``, else the image's own, or None.
+    """The pings' spacing: ``--ping-spacing``, else the image's own, or None (said).
 
     The image's own is ``ping_spacing_m`` in its header (as ``render`` writes it), else its
     effects' ``ping_spacing_m``.
@@ -332,6 +332,11 @@ def _ping_spacing(args: argparse.Namespace) -> float | None:
         value = _header_float(attrs, name)
         if value is not None and value > 0:
             return value
+    if not args.quiet:
+        print(
+            f"note: {Path(args.image).name} does not say its ping spacing; the along-track "
+            "geometry takes the ground cell (give --ping-spacing METRES)"
+        )
     return None
 
 

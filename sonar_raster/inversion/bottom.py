@@ -9,12 +9,13 @@ its bin, and a model of the nadir return gives its place inside the bin.
    is the mean of L over the ``window`` bins from k on minus the mean over every bin before k:
    the water column before the first return gives the largest score, and an isolated bright
    speck moves the mean of a window only a little. The first local maximum of the score above
-   half the ping's largest is the edge, or above ``min_contrast_db`` where the mean over
-   ``SUSTAIN_WINDOWS`` windows after it stays that far above the water too (a weak first
-   return before bright debris, not a layer of fish); the ping's own contrast there, in dB,
-   must reach ``min_contrast_db`` or the ping has no clear return. Where L crosses halfway
-   between the water column and the seabed just after the edge (plus half a bin) is the coarse
-   position, off by up to half a bin depending on where the edge lies in its bin.
+   half the ping's largest is the edge, or a distinct step more than a window before it whose
+   score reaches ``min_contrast_db`` and the mean over ``SUSTAIN_WINDOWS`` windows after it
+   too (a weak first return before bright debris, not a layer of fish); the ping's own
+   contrast there, in dB, must reach ``min_contrast_db`` or the ping has no clear return.
+   Where L crosses halfway between the water column and the seabed just after the edge (plus
+   half a bin) is the coarse position, off by up to half a bin depending on where the edge
+   lies in its bin.
 2. Over a flat seabed each bin holds ``∫ G(x) dx`` over the ground ranges ``x = √(r² − h²)`` its
    slant ranges cover, ``G`` the smooth return per metre of ground (beam, reflectivity, grazing
    angle). For trial altitudes h within 1.5 bins of the coarse position, ``ln G`` is fitted by

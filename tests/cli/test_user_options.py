@@ -162,7 +162,7 @@ def test_invert_reads_the_renderers_display_png(tmp_path, capsys):
 def test_invert_takes_the_ping_spacing_the_render_wrote(tmp_path, capsys, extra):
     """A render's header says its pings' spacing (with or without effects); ``invert`` takes
     it for the along-track geometry instead of the ground cell (it took 0.04 m for the default
-    render's 0.05 m); ``--ping-spacing`` still wins."""
+    render's 0.05 m); ``--ping-spacing`` still wins; an image that does not say is noted."""
     model = tmp_path / "post.wrl"
     model.write_text(POST_VRML)
     exr = tmp_path / "r.exr"
@@ -171,11 +171,19 @@ def test_invert_takes_the_ping_spacing_the_render_wrote(tmp_path, capsys, extra)
     assert float(read_exr(exr)[1]["sonar_raster:ping_spacing_m"]) == pytest.approx(0.13)
     for given, expected in (([], 0.13), (["--ping-spacing", "0.2"], 0.2)):
         out = tmp_path / f"inv{len(given)}"
-        base = ["invert", str(exr), "-o", str(out), "-q", "--no-mesh", "--no-previews"]
+        base = ["invert", str(exr), "-o", str(out), "--no-mesh", "--no-previews"]
         assert main([*base, "--method", "profiles", *given]) == 0
         doc = json.loads((out / "inversion.json").read_text())
         assert doc["ping_spacing_m"] == pytest.approx(expected)
-    capsys.readouterr()
+    assert "ping spacing" not in capsys.readouterr().out
+    np.save(tmp_path / "img.npy", read_exr(exr)[0]["starboard"])
+    args = ["invert", str(tmp_path / "img.npy"), "--range-bin", "0.05", "--method", "profiles"]
+    assert main([*args, "-o", str(tmp_path / "npy"), "--no-mesh", "--no-previews"]) == 0
+    said = [line for line in capsys.readouterr().out.splitlines() if "ping spacing" in line]
+    assert said == [
+        "note: img.npy does not say its ping spacing; the along-track geometry takes the "
+        "ground cell (give --ping-spacing METRES)"
+    ]
 
 
 def test_invert_help_states_the_default_side(capsys):
