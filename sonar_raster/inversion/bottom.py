@@ -72,8 +72,11 @@ AGREE_BINS = 2.0
 #: A step weaker than half the ping's largest is the edge when it reaches the minimum contrast
 #: and the mean over this many windows after it does too (a seabed, not a fish).
 SUSTAIN_WINDOWS = 4
-#: Share of samples exactly 0 from which an image is taken as noise-free (:func:`_log_image`).
+#: An image with this share of samples exactly 0, and at least ``CLEAN_LOOKS`` looks, is
+#: taken as noise-free (:func:`_log_image`): a speckled seabed over an exactly dark water
+#: column is not.
 CLEAN_ZEROS = 0.01
+CLEAN_LOOKS = 100.0
 #: Pings averaged (in log intensity) before detection.
 AVERAGE_PINGS = 5
 #: Gaussian smoothing along range before detection, bins (symmetric: a step stays in place).
@@ -128,19 +131,21 @@ def blanking_bins(image: np.ndarray) -> int:
     return int(limit if bright.all() else np.argmin(bright))
 
 
-def _log_image(image: np.ndarray) -> np.ndarray:
+def _log_image(image: np.ndarray, looks: float = 1.0) -> np.ndarray:
     """ln(I + ε), smoothed along range.
 
-    ε is 1e-3 of the median positive intensity, below any noise floor; in a noise-free image
-    (at least :data:`CLEAN_ZEROS` of its samples exactly 0: water column, shadows) it is 1e-3
-    of the 1st percentile instead, since there the faintest returns are signal (a render's
-    nadir seen through the beam's sidelobes lies near 1e-3 of the median: it was taken for
-    water, and the tracked altitude came out 0.4-1.6 m long).
+    ε is 1e-3 of the median positive intensity, below any noise floor and the deep fades of
+    speckle; in a noise-free image (at least :data:`CLEAN_ZEROS` of its samples exactly 0 —
+    water column, shadows — and ``looks`` of at least :data:`CLEAN_LOOKS`) it is 1e-3 of the
+    1st percentile instead, since there the faintest returns are signal (a render's nadir seen
+    through the beam's sidelobes lies near 1e-3 of the median: it was taken for water, and the
+    tracked altitude came out 0.4-1.6 m long).
     """
     positive = image[image > 0]
+    clean = looks >= CLEAN_LOOKS and positive.size <= (1.0 - CLEAN_ZEROS) * image.size
     if not positive.size:
         eps = 1.0
-    elif positive.size <= (1.0 - CLEAN_ZEROS) * image.size:
+    elif clean:
         eps = 1e-3 * float(np.percentile(positive, 1.0))
     else:
         eps = 1e-3 * float(np.median(positive))
@@ -418,7 +423,7 @@ def _detect(
         looks = max(estimate_looks(image, np.ones_like(image)), 1.0) if len(image) > 1 else math.inf
     elif not (isinstance(looks, (int, float)) and looks > 0):
         raise SonarRasterError(f"looks must be a number > 0 or None, got {looks!r}")
-    own = _log_image(image)
+    own = _log_image(image, float(looks))
     logs = ndimage.uniform_filter1d(own, AVERAGE_PINGS, axis=0, mode="nearest")
     lo = blanking_bins(image)
     edge, score, water = _edges(logs, lo, window, min_contrast_db / _DB_PER_NEPER)

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 from conftest import SHARED_DATA, box_from_bounds, plane
+from scipy import ndimage
 
 from sonar_raster import render_raster
 from sonar_raster.errors import SonarRasterError
@@ -140,8 +141,6 @@ def test_the_earlier_step_rule_leaves_a_single_step_alone(flat, water):
     """A flat seabed's one step: every edge is where half the largest step puts it (the
     earlier-step rule is off with an unreachable floor). Taken from anywhere on the step's
     rising score, the climb stopped short on 12-53 % of the pings with water-column noise."""
-    from scipy import ndimage
-
     from sonar_raster.inversion import bottom
 
     altitude, sides = flat
@@ -155,6 +154,27 @@ def test_the_earlier_step_rule_leaves_a_single_step_alone(flat, water):
         with_rule = bottom._edges(logs, lo, bottom.WINDOW_BINS, floor)[0]
         without = bottom._edges(logs, lo, bottom.WINDOW_BINS, np.inf)[0]
         np.testing.assert_array_equal(with_rule, without)
+
+
+def test_the_log_floor_sits_under_the_faintest_returns_only_of_noise_free_images():
+    """ln(I + ε): ε is 1e-3 of the median positive value, except in a noise-free image (exact
+    zeros and many looks), where it is 1e-3 of the 1st percentile; a speckled seabed over an
+    exactly dark water column keeps the median's (its deep fades are not signal)."""
+    from sonar_raster.inversion import bottom
+
+    rng = np.random.default_rng(2)
+    seabed = np.geomspace(1e-6, 1.0, 300)[None, :] * np.ones((4, 1))
+    image = np.concatenate([np.zeros((4, 100)), seabed], axis=1)
+    positive = image[image > 0]
+    for looks, values, level in (
+        (np.inf, image, np.percentile(positive, 1.0)),
+        (1.0, image * rng.exponential(size=image.shape), None),
+    ):
+        if level is None:
+            level = np.median(values[values > 0])
+        got = bottom._log_image(values, looks)
+        expected = ndimage.gaussian_filter1d(np.log(values + 1e-3 * level), 1.0, axis=1)
+        np.testing.assert_allclose(got, expected, rtol=1e-12)
 
 
 def _tilted_plane(slope: float, altitude_at_nadir: float) -> MeshPart:
