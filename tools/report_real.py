@@ -1,7 +1,8 @@
 """A report on a real side-scan XTF pass: waterfall, altitude, inversion, wreck height.
 
 Usage: ``python tools/report_real.py FILE.xtf -o DIR [--pings A:B] [--max-iter N]
-[--levels N] [--side starboard] [--method profiles|surface]``
+[--levels N] [--side starboard] [--method auto|profiles|surface]`` (``auto``, the default,
+chooses as ``sonar-raster invert`` does: the surface fit for a speckled file it can afford)
 
 Writes into DIR:
 
@@ -317,9 +318,10 @@ def _report(argv: list[str] | None) -> int:
     ap.add_argument("--levels", type=int, default=3)
     ap.add_argument(
         "--method",
-        default="profiles",
-        choices=("profiles", "surface"),
-        help="the inversion (surface: one surface for both sides, its own levels)",
+        default="auto",
+        choices=("auto", "profiles", "surface"),
+        help="the inversion (surface: one surface for both sides, its own levels; auto, the "
+        "default: as sonar-raster invert chooses)",
     )
     ap.add_argument("--side", default="starboard", choices=("port", "starboard"),
                         help="the side with the object")  # fmt: skip
@@ -336,11 +338,21 @@ def _report(argv: list[str] | None) -> int:
     out = Path(args.output)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
+    recording = None
+    if args.method == "auto":  # as sonar-raster invert chooses, the file read once
+        from sonar_raster.inversion.method import choose_method
+        from sonar_raster.io.xtf import read_xtf
+
+        recording = read_xtf(args.xtf, parse_pings(args.pings))
+        sides = {s: np.square(v.astype(np.float64)) for s, v in recording[0].sides.items()}
+        choice = choose_method([sides])
+        args.method = choice.method
+        print(choice.reason, flush=True)
     options = {"max_iter": args.max_iter}
     if args.method == "profiles":
         options["levels"] = args.levels
     result = invert_xtf(args.xtf, pings=parse_pings(args.pings), method=args.method,
-                        **options)  # fmt: skip
+                        recording=recording, **options)  # fmt: skip
     seconds = time.perf_counter() - t0
     image, nav, track = result.image, result.navigation, result.track
     dr = image.sonar.range_bin
@@ -441,6 +453,7 @@ def _report(argv: list[str] | None) -> int:
             "tracked_minus_file_median_m": float(np.nanmedian(track.altitude - nav.altitude)),
         },
         "inversion": {
+            "method": args.method,
             "max_iter": args.max_iter,
             "levels": args.levels,
             "seconds": seconds,
@@ -476,8 +489,8 @@ median {doc["altitude"]["tracked_min_median_max_m"][1]:.2f}, max
 
 ![altitude](altitude.png)
 
-Inversion ({args.levels} levels, at most {args.max_iter} iterations per level and start):
-{seconds:.0f} s for {len(result.sides)} side(s).
+Inversion ({args.method}; {args.levels} levels for the profiles, at most {args.max_iter}
+iterations per level and start): {seconds:.0f} s for {len(result.sides)} side(s).
 
 ![inversion](inversion.png)
 
