@@ -435,6 +435,22 @@ class Problem:
             grad[self.phi_slice(side)] += 2.0 * w * res
         return total
 
+    def beam_prior_hessian(self) -> np.ndarray:
+        """Hessian of the priors on the log Φ nodes (all sides), dense."""
+        n = self.grid.nodes
+        out = np.zeros((n * len(self.grid.sides),) * 2)
+        d2 = np.diff(np.eye(n), 2, axis=0)
+        for i, side in enumerate(self.grid.sides):
+            block = 2.0 * self.w_phi * d2.T @ d2
+            if side in self.beam_reference:
+                held = self.beam_reference[side][1]
+                centre = np.diag(held) @ (
+                    np.eye(n) - np.outer(np.ones(n), held) / max(held.sum(), 1.0)
+                )
+                block += (1.0 / CALIBRATED_BEAM_STD**2) * centre.T @ centre
+            out[i * n : (i + 1) * n, i * n : (i + 1) * n] = block
+        return out
+
     def anchor_std(self, view: View) -> float:
         """Standard deviation of the first-return altitude, metres."""
         return ANCHOR_BINS * view.anchor_bin

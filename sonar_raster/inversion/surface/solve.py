@@ -31,6 +31,7 @@ from .layout import (
 )
 from .problem import (
     SYMMETRIC_LU,
+    Beam,
     Grid,
     Problem,
     each,
@@ -86,6 +87,16 @@ RESTART_GAIN = 1e-6
 EDGE_BINS = 6
 #: The Gauss-Newton Jacobian includes Z's change of the cast shadows (else shadows held).
 SHADOW_JACOBIAN = True
+#: Each Gauss-Newton step solves for the Z knots and the log Φ nodes together (Φ eliminated:
+#: a Schur complement of low rank), not Z with Φ held: Φ and Z are coupled wherever every
+#: ping shares a bend (most near the nadir), and alternating the two creeps along that valley.
+JOINT_BEAM = True
+#: ... but only in fits whose finest level pools the images at most this much (``finest``,
+#: ``invert --coarsen``). Φ free to follow it, the level then rests on the first-return anchor
+#: less the crests it reads (``CREST_OFFSET``), which the model shows only where its knots
+#: resolve the relief beside the nadir: at ``--coarsen 4`` they do not, and sand waves came
+#: out at their crests (docs/notes/2026-11-29-joint-beam.md).
+JOINT_BEAM_MAX_POOLING = 2
 #: Depression-angle nodes of log Φ, per degree.
 BEAM_NODES_PER_DEGREE = 1.0
 #: Objects whose cast shadow (:func:`..shadows.find_shadows` on the coarsest level's image)
@@ -261,7 +272,10 @@ def fit_lines(
         if progress is not None:
             step = partial(_report_step, progress, label, start)
         if GAUSS_NEWTON_STEPS:
-            params, value, count = _gauss_newton(problem, params, GAUSS_NEWTON_STEPS, step)
+            joint = JOINT_BEAM and finest <= JOINT_BEAM_MAX_POOLING
+            params, value, count = _gauss_newton(
+                problem, params, GAUSS_NEWTON_STEPS, step, joint=joint
+            )
         else:
             params, value, count = _minimise(problem, params, max_iter)
         energies.append(value)
@@ -764,7 +778,7 @@ def laplace_draws(
     nr = problem.nr if reflectivity else 0
 
     def view_jacobian(view: View) -> sparse.csr_matrix:
-        jz, jr = _view_jacobians(problem, p, reflectivity, view)
+        jz, jr, _ = _view_jacobians(problem, p, reflectivity, view)
         return jz if jr is None else sparse.hstack([jz, jr], format="csr")
 
     jacs = each(view_jacobian, problem.views)
@@ -926,14 +940,17 @@ def _jacobians(
     beam's change of depression angle and of the cast shadows (:func:`.problem.shade_jacobian`, with
     ``SHADOW_JACOBIAN``); Φ nodes are held.
     """
-    pairs = each(partial(_view_jacobians, problem, p, reflectivity), problem.views)
-    return [jz for jz, _ in pairs], [jr for _, jr in pairs if jr is not None]
+    parts = each(partial(_view_jacobians, problem, p, reflectivity), problem.views)
+    return [jz for jz, _, _ in parts], [jr for _, jr, _ in parts if jr is not None]
 
 
 def _view_jacobians(
-    problem: Problem, p: np.ndarray, reflectivity: bool, view: View
-) -> tuple[sparse.csr_matrix, sparse.csr_matrix | None]:
-    """One view's part of :func:`_jacobians`."""
+    problem: Problem, p: np.ndarray, reflectivity: bool, view: View, beam_nodes: bool = False
+) -> tuple[sparse.csr_matrix, sparse.csr_matrix | None, sparse.csr_matrix | None]:
+    """One view's part of :func:`_jacobians`; with ``beam_nodes`` also its Φ part.
+
+    That is ``sqrt(W) ∂μ/∂(log Φ nodes)``, one column per node of every side.
+    """
     z, r, beam = problem.fields(p, view)
     shade, occluder, slope = soft_shadow(z, view.geom.x, view.tau)
     mu = forward(r * shade, beam.phi, z, view.geom) + view.floor
@@ -947,10 +964,23 @@ def _view_jacobians(
         )
     per_cell = jacobian_z(weight, r * shade, beam.phi, z, view.geom) + deposit @ through
     jz = (per_cell @ view.bz).tocsr()
-    if not reflectivity:
-        return jz, None
-    values = r * shade * beam.phi  # ∂μ/∂log R of a cell: its whole return
-    return jz, (deposit @ sparse.diags(values.ravel()) @ view.br).tocsr()
+    # ∂μ/∂log R and ∂μ/∂log Φ of a cell: its whole return
+    whole = deposit @ sparse.diags((r * shade * beam.phi).ravel())
+    jr = (whole @ view.br).tocsr() if reflectivity else None
+    jphi = (whole @ _node_matrix(problem, view, beam)).tocsr() if beam_nodes else None
+    return jz, jr, jphi
+
+
+def _node_matrix(problem: Problem, view: View, beam: Beam) -> sparse.csr_matrix:
+    """(pings·cells) × (every side's Φ nodes): each cell's log Φ from its side's two nodes."""
+    n = problem.grid.nodes
+    index = beam.index.ravel() + problem.grid.sides.index(view.side) * n
+    w = beam.weight.ravel()
+    rows = np.arange(index.size)
+    return sparse.csr_matrix(
+        (np.concatenate([1.0 - w, w]), (np.tile(rows, 2), np.concatenate([index, index + 1]))),
+        shape=(index.size, n * len(problem.grid.sides)),
+    )
 
 
 def _fisher_z(problem: Problem, p: np.ndarray) -> sparse.csc_matrix:
@@ -967,6 +997,27 @@ def _fisher_z(problem: Problem, p: np.ndarray) -> sparse.csc_matrix:
 
     roots = _prior_roots(problem)
     return _summed(each(gram, problem.views) + ([_gram(roots)] if roots else []))
+
+
+def _fisher_z_beam(
+    problem: Problem, p: np.ndarray
+) -> tuple[sparse.csc_matrix, sparse.csc_matrix, np.ndarray]:
+    """:func:`_fisher_z`, and the Fisher blocks of the log Φ nodes: ``(H_zz, H_zΦ, H_ΦΦ)``.
+
+    ``H_ΦΦ`` includes the Hessians of the priors on log Φ (its curvature, a calibrated shape).
+    """
+
+    def blocks(view: View) -> tuple:
+        jz, _, jphi = _view_jacobians(problem, p, False, view, beam_nodes=True)
+        assert jphi is not None
+        return (jz.T @ jz).tocsc(), (jz.T @ jphi).tocsc(), (jphi.T @ jphi).toarray()
+
+    roots = _prior_roots(problem)
+    parts = each(blocks, problem.views)
+    hzz = _summed([b[0] for b in parts] + ([_gram(roots)] if roots else []))
+    hzphi = _summed([b[1] for b in parts])
+    hphi = sum(b[2] for b in parts) + problem.beam_prior_hessian()
+    return hzz, hzphi, hphi
 
 
 def _gram(roots: Sequence[sparse.spmatrix]) -> sparse.csc_matrix:
@@ -1107,6 +1158,35 @@ def _deflated(
     return apply
 
 
+def _schur(
+    problem: Problem,
+    lhs: sparse.csc_matrix,
+    hzphi: sparse.csc_matrix,
+    hphi: np.ndarray,
+    gz: np.ndarray,
+    gphi: np.ndarray,
+) -> tuple[Callable[[np.ndarray], np.ndarray], np.ndarray, Callable[[np.ndarray], np.ndarray]]:
+    """The joint Z-Φ Gauss-Newton system with the log Φ nodes eliminated.
+
+    ``[[A, U], [Uᵀ, C]] [δz, δφ] = −[g_z, g_φ]`` (``A`` the Z matrix with the line prior,
+    ``U = H_zΦ``, ``C = H_ΦΦ``: a few hundred nodes, so ``C`` is factored directly) becomes
+    ``S δz = −(g_z − U C⁻¹ g_φ)`` with ``S = A − U C⁻¹ Uᵀ``, then ``δφ = −C⁻¹ (g_φ + Uᵀ δz)``.
+    Returns the product with ``S``, the right-hand side and ``δz -> δφ``. ``A``'s own
+    preconditioner serves ``S`` as well: a Woodbury correction for the low-rank term (one
+    preconditioner application per node) changed neither the steps nor the result on the
+    default render and doubled the fit's time (docs/notes/2026-11-29-joint-beam.md).
+    """
+    from scipy.linalg import cho_factor, cho_solve
+
+    c = cho_factor(hphi)
+
+    def matvec(v: np.ndarray) -> np.ndarray:
+        return _gn_matvec(problem, lhs, v) - hzphi @ cho_solve(c, hzphi.T @ v)
+
+    rhs = -(gz - hzphi @ cho_solve(c, gphi))
+    return matvec, rhs, lambda dz: -cho_solve(c, gphi + hzphi.T @ dz)
+
+
 def _gn_matvec(problem: Problem, lhs: sparse.csc_matrix, v: np.ndarray) -> np.ndarray:
     out = np.asarray(lhs @ v)
     if problem.w_line > 0:
@@ -1119,16 +1199,18 @@ def _gauss_newton(
     p: np.ndarray,
     steps: int,
     report: Callable[[int, int, float], None] | None = None,
+    joint: bool = True,
 ) -> tuple:
-    """Alternate Gauss-Newton steps on the Z knots with L-BFGS on R and Φ.
+    """Alternate Gauss-Newton steps on the Z knots and log Φ nodes with L-BFGS on R and Φ.
 
-    Each Z step solves ``(H + H_line + μ D) δ = −g`` to ``GAUSS_NEWTON_RTOL`` by conjugate
-    gradients preconditioned with the sparse LU factors of ``H + μ D``, or a multigrid V-cycle
-    on it beyond ``AMG_KNOTS`` knots (D its diagonal; μ shrinks after a good step and grows
-    after a bad one), deflated on the line prior's strongest directions (:func:`_deflated`),
-    then backtracks on the full objective, which never rises within a step (with
-    ``CREST_OFFSET`` the anchor's crest offset is measured anew before each step). R and Φ
-    then take L-BFGS steps on the objective with Z held (:meth:`.Problem.held_z`).
+    Each step solves ``(H + H_line + μ D) δ = −g`` for Z and Φ together (``joint``; Φ's few
+    nodes eliminated, :func:`_schur`; else for Z with Φ held) to ``GAUSS_NEWTON_RTOL`` by
+    conjugate gradients preconditioned with the sparse LU factors of Z's ``H + μ D``, or a
+    multigrid V-cycle on it beyond ``AMG_KNOTS`` knots (D its diagonal; μ shrinks after a
+    good step and grows after a bad one), deflated on the line prior's strongest directions
+    (:func:`_deflated`), then backtracks on the full objective, which never rises within a
+    step (with ``CREST_OFFSET`` the anchor's crest offset is measured anew before each step).
+    R and Φ then take L-BFGS steps on the objective with Z held (:meth:`.Problem.held_z`).
     """
     from scipy.sparse.linalg import LinearOperator, cg
 
@@ -1139,17 +1221,32 @@ def _gauss_newton(
         _track_model(problem, p)
     value, grad = problem(p)
     count, damping = 1, 1e-3
+    phis = slice(nz + problem.nr, problem.size)
     for k in range(int(steps)):
-        h = _fisher_z(problem, p)
+        if joint:
+            h, hzphi, hphi = _fisher_z_beam(problem, p)
+        else:
+            h = _fisher_z(problem, p)
         diag = h.diagonal()
         lhs = (h + sparse.diags(damping * diag + 1e-12 * diag.mean())).tocsc()
-        op = LinearOperator((nz, nz), matvec=partial(_gn_matvec, problem, lhs))
+        matvec: Callable[[np.ndarray], np.ndarray] = partial(_gn_matvec, problem, lhs)
+        rhs, back = -grad[:nz], None
+        if joint:
+            hphi = hphi + np.diag(damping * np.diag(hphi) + 1e-12 * np.mean(np.diag(hphi)))
+            try:
+                matvec, rhs, back = _schur(problem, lhs, hzphi, hphi, grad[:nz], grad[phis])
+            except np.linalg.LinAlgError:  # Φ's block not positive definite: Z alone
+                pass
+        op = LinearOperator((nz, nz), matvec=matvec)
         pre = LinearOperator((nz, nz), matvec=_deflated(problem, lhs, _preconditioner(lhs)))
-        step, _ = cg(op, -grad[:nz], M=pre, maxiter=30, rtol=GAUSS_NEWTON_RTOL)
+        step, _ = cg(op, rhs, M=pre, maxiter=30, rtol=GAUSS_NEWTON_RTOL)
+        step_phi = None if back is None else back(step)
         accepted = False
         for t in (1.0, 0.5, 0.25, 0.125):
             q = p.copy()
             q[:nz] += t * step
+            if step_phi is not None:
+                q[phis] += t * step_phi
             trial, g_trial = problem(q)
             count += 1
             if trial < value:
