@@ -896,6 +896,7 @@ def test_fits_pooled_more_than_twice_step_on_z_alone(monkeypatch, finest, joint)
 
     monkeypatch.setattr(solve, "_gauss_newton", record)
     monkeypatch.setattr(solve, "GAUSS_NEWTON_STEPS", 1)
+    monkeypatch.setattr(solve, "JOINT_BEAM", True)
     line = layout.Line.straight(_flat_render(6.0), 0.05, 0.1)
     solve.fit_lines([line], finest=finest, uncertainty=False)
     assert seen == [joint, joint]
