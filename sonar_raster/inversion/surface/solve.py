@@ -275,10 +275,9 @@ def fit_lines(
         if progress is not None:
             step = partial(_report_step, progress, label, start)
         if GAUSS_NEWTON_STEPS:
-            joint = JOINT_BEAM and finest <= JOINT_BEAM_MAX_POOLING
-            params, value, count = _gauss_newton(
-                problem, params, GAUSS_NEWTON_STEPS, step, joint=joint
-            )
+            # the option only where asked (older wrappers of _gauss_newton take no `joint`)
+            joint = {"joint": True} if JOINT_BEAM and finest <= JOINT_BEAM_MAX_POOLING else {}
+            params, value, count = _gauss_newton(problem, params, GAUSS_NEWTON_STEPS, step, **joint)
         else:
             params, value, count = _minimise(problem, params, max_iter)
         energies.append(value)
@@ -1202,7 +1201,7 @@ def _gauss_newton(
     p: np.ndarray,
     steps: int,
     report: Callable[[int, int, float], None] | None = None,
-    joint: bool = True,
+    joint: bool = False,
 ) -> tuple:
     """Alternate Gauss-Newton steps on the Z knots and log Φ nodes with L-BFGS on R and Φ.
 
