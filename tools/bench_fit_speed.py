@@ -21,9 +21,9 @@ side (single-look speckle, the seabed mesh at 0.1 m cells, 12 m altitude) and fi
   (``solve.SHADOW_JACOBIAN = False``, as before session 23). (Not switched back: the
   uncertainty's per-view threads, the tensor bases' index type, the draws' spread in float32;
   together ~2 s at this size.)
-- **joint**: the package as it is with each Gauss-Newton step on Z and Φ together
-  (``solve.JOINT_BEAM = True``, off by default; the fit applies it only where ``--finest`` is 1
-  or 2);
+- **alternating**: the package as it is with each Gauss-Newton step on Z alone, Φ held
+  (``solve.JOINT_BEAM = False``, as before 2026-11-29's session 28; the joint step applies
+  only where ``--finest`` is 1 or 2, so at the default 4 the two are the same);
 - **new**: the package as it is.
 
 Per variant: fit seconds (with the uncertainty), seconds in the inner minimisation, in the
@@ -32,7 +32,7 @@ RMSE over the relief std as the bathymetry bench (the fit moves with rounding-le
 so differences below ~0.05 are noise) and the ratio to the baseline's seconds.
 
 Usage: ``python tools/bench_fit_speed.py [--pings 1000] [--bins 2000] [--finest 4]
-[--seabed sand] [--variants baseline,held,steps,threads,previous,joint,new]``.
+[--seabed sand] [--variants baseline,held,steps,threads,previous,alternating,new]``.
 """
 
 from __future__ import annotations
@@ -61,8 +61,8 @@ VARIANTS = {
     "steps": {"held": False, "steps": True, "threads": 1},
     "threads": {"held": False, "steps": False, "threads": None},
     "previous": {"held": True, "steps": True, "threads": None, "previous": True},
-    "joint": {"held": True, "steps": True, "threads": None, "joint": True},
-    "new": {"held": True, "steps": True, "threads": None},
+    "alternating": {"held": True, "steps": True, "threads": None},
+    "new": {"held": True, "steps": True, "threads": None, "joint": True},
 }
 #: The multigrid settings before 2026-11-28's second speed pass.
 TWO_SWEEPS = {
@@ -161,8 +161,8 @@ def run(field, tracks, images, finest: int, variant: dict) -> dict:
             patch(mock.patch.object(solve, "_deflated", _deflated_by_products))
             patch(mock.patch.object(solve, "_fisher_z", _fisher_one_by_one))
             patch(mock.patch.object(solve, "SHADOW_JACOBIAN", False))
-        if variant.get("joint"):
-            patch(mock.patch.object(solve, "JOINT_BEAM", True))
+        if not variant.get("joint"):  # every variant but new steps on Z alone
+            patch(mock.patch.object(solve, "JOINT_BEAM", False))
         if variant["threads"] is not None:
             patch(mock.patch.object(problem_module, "THREADS", variant["threads"]))
         patch(mock.patch.object(solve, "_minimise", meter.timed("inner", solve._minimise)))

@@ -90,16 +90,19 @@ SHADOW_JACOBIAN = True
 #: Each Gauss-Newton step solves for the Z knots and the log Φ nodes together (Φ eliminated:
 #: a Schur complement of low rank) instead of Z with Φ held. Φ and Z are coupled wherever
 #: every ping shares a bend (most near the nadir), and alternating the two creeps along that
-#: valley. Off by default: it helps the bench and the default render, but a clean flat seabed
-#: came out 1.5 cm rms off near the nadir (0.5 cm alternating; the tests' bound 0.8 cm)
-#: (docs/notes/2026-11-29-joint-beam.md).
-JOINT_BEAM = False
+#: valley (docs/notes/2026-11-29-joint-beam.md).
+JOINT_BEAM = True
 #: With ``JOINT_BEAM``, only in fits whose finest level pools the images at most this much
 #: (``finest``, ``invert --coarsen``). Φ free to follow it, the level rests on the first-return
 #: anchor less the crests it reads (``CREST_OFFSET``), which the model shows only where its
 #: knots resolve the relief beside the nadir: at ``--coarsen 4`` they do not, and sand waves
 #: came out at their crests.
 JOINT_BEAM_MAX_POOLING = 2
+#: The joint step moves no Z knot by more than this many range bins (the step scaled down
+#: whole, Φ's part with it). Uncapped, the fine level's second step threw the knots beside the
+#: nadir −3.7 / +2.2 cm with Φ's nadir nodes (the model's first bins, where the Gauss-Newton
+#: model is poorest), and the fit stayed there: a clean flat seabed 1.5 cm rms off.
+JOINT_STEP_BINS = 1.0
 #: Depression-angle nodes of log Φ, per degree.
 BEAM_NODES_PER_DEGREE = 1.0
 #: Objects whose cast shadow (:func:`..shadows.find_shadows` on the coarsest level's image)
@@ -1243,6 +1246,11 @@ def _gauss_newton(
         pre = LinearOperator((nz, nz), matvec=_deflated(problem, lhs, _preconditioner(lhs)))
         step, _ = cg(op, rhs, M=pre, maxiter=30, rtol=GAUSS_NEWTON_RTOL)
         step_phi = None if back is None else back(step)
+        if step_phi is not None:  # a trust region on the joint step (JOINT_STEP_BINS)
+            biggest = float(np.max(np.abs(step))) if step.size else 0.0
+            cap = JOINT_STEP_BINS * problem.views[0].geom.range_bin
+            if biggest > cap:
+                step, step_phi = step * (cap / biggest), step_phi * (cap / biggest)
         accepted = False
         for t in (1.0, 0.5, 0.25, 0.125):
             q = p.copy()
