@@ -839,7 +839,8 @@ def test_the_beams_fisher_blocks_are_the_images_central_differences(lines):
 
 
 def test_the_joint_step_solves_the_whole_z_and_beam_system():
-    """Φ eliminated (:func:`solve._schur`) gives the step of the joint system solved whole."""
+    """Φ eliminated (:func:`solve._schur`) gives the step of the joint system solved whole,
+    and :func:`solve._model_curvature` is that system's quadratic form."""
     problem, p, rng = _problem(4)
     nz, start = problem.nz, problem.nz + problem.nr
     _, grad = problem(p)
@@ -855,6 +856,10 @@ def test_the_joint_step_solves_the_whole_z_and_beam_system():
     dz = np.linalg.solve(schur, rhs)
     assert np.allclose(dz, expected[:nz], rtol=1e-6, atol=1e-9 * np.abs(expected).max())
     assert np.allclose(back(dz), expected[nz:], rtol=1e-6, atol=1e-9 * np.abs(expected).max())
+    # the trust region's predicted decrease uses the same matrix's quadratic form
+    s = rng.normal(size=whole.shape[0])
+    curve = solve._model_curvature(problem, lhs, hzphi, hphi, s[:nz], s[nz:])
+    assert curve == pytest.approx(s @ whole @ s, rel=1e-9)
 
 
 def test_the_joint_steps_reach_a_lower_objective_than_steps_on_z_alone(monkeypatch):
@@ -869,6 +874,38 @@ def test_the_joint_steps_reach_a_lower_objective_than_steps_on_z_alone(monkeypat
         fit = surface.fit_surface(sides, rb, ping_spacing=spacing, uncertainty=False)
         final[joint] = fit.energies[-1]
     assert final[True] < final[False] - 30.0
+
+
+@pytest.mark.parametrize(
+    ("rho", "backtracked", "capped", "expected"),
+    [
+        (0.9, False, True, 2.0),  # the radius bound a well-predicted step: grow
+        (0.9, False, False, 1.0),  # it did not bind: keep
+        (0.5, False, True, 1.0),  # fair prediction: keep
+        (0.1, False, True, 0.5),  # poor prediction: shrink
+        (0.9, True, True, 0.5),  # the full step raised E: shrink
+        (0.0, True, False, 0.5),  # rejected
+    ],
+)
+def test_the_trust_radius_follows_the_models_prediction(rho, backtracked, capped, expected):
+    assert solve._trust_radius(1.0, rho, backtracked, capped) == expected
+    assert solve._trust_radius(0.25, 0.0, True, False) == 0.25  # a floor
+
+
+def test_a_trust_radius_that_grows_reaches_a_lower_objective_than_one_held(monkeypatch):
+    """The radius starts at one bin (a clean flat seabed needs it, the tests above), but held
+    there the joint steps stop short where the model predicts well. Measured on this speckled
+    line: E −68 230 against −68 178 with the radius held at one bin (single-look sand waves on
+    the bench: 0.51 against 0.76 × relief std)."""
+    _, _, sides, _, rb, spacing = _sand_line(1)
+    final = {}
+    for held in (False, True):
+        if held:
+            monkeypatch.setattr(solve, "_trust_radius", lambda radius, *args: radius)
+        fit = surface.fit_surface(sides, rb, ping_spacing=spacing, uncertainty=False)
+        final[held] = fit.energies[-1]
+    print(final)
+    assert final[False] < final[True] - 25.0
 
 
 def test_a_joint_step_falls_back_to_z_alone_where_the_beams_block_is_singular(monkeypatch):

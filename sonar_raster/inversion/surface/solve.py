@@ -98,11 +98,18 @@ JOINT_BEAM = True
 #: knots resolve the relief beside the nadir: at ``--coarsen 4`` they do not, and sand waves
 #: came out at their crests.
 JOINT_BEAM_MAX_POOLING = 2
-#: The joint step moves no Z knot by more than this many range bins (the step scaled down
-#: whole, Φ's part with it). Uncapped, the fine level's second step threw the knots beside the
-#: nadir −3.7 / +2.2 cm with Φ's nadir nodes (the model's first bins, where the Gauss-Newton
-#: model is poorest), and the fit stayed there: a clean flat seabed 1.5 cm rms off.
+#: The joint step's trust region, in range bins: no Z knot moves by more than this per step
+#: (the step scaled down whole, Φ's part with it). Each level's fit starts at this radius, and
+#: :func:`_trust_radius` updates it after each step. Without a bound, the fine level's first
+#: step threw the knots beside the nadir −3.7 / +2.2 cm with Φ's nadir nodes (the model's
+#: first bins, where the Gauss-Newton model is poorest), and the fit stayed there: a clean
+#: flat seabed 1.5 cm rms off.
 JOINT_STEP_BINS = 1.0
+#: The radius halves after a step whose decrease of E fell below the first of these fractions
+#: of the decrease the Gauss-Newton model predicted (or that had to backtrack), and doubles
+#: after a step that reached the radius and did better than the second. A radius held at one
+#: bin cost single-look sand waves 0.51 → 0.76 (docs/notes/2026-11-29-trust-region.md).
+JOINT_TRUST_RATIO = (0.25, 0.75)
 #: Depression-angle nodes of log Φ, per degree.
 BEAM_NODES_PER_DEGREE = 1.0
 #: Objects whose cast shadow (:func:`..shadows.find_shadows` on the coarsest level's image)
@@ -1192,6 +1199,39 @@ def _schur(
     return matvec, rhs, lambda dz: -cho_solve(c, gphi + hzphi.T @ dz)
 
 
+def _model_curvature(
+    problem: Problem,
+    lhs: sparse.csc_matrix,
+    hzphi: sparse.csc_matrix,
+    hphi: np.ndarray,
+    dz: np.ndarray,
+    dphi: np.ndarray,
+) -> float:
+    """The Gauss-Newton model's curvature along the joint step ``s = (δz, δφ)``.
+
+    ``sᵀ M s`` with ``M`` the joint system's matrix (:func:`_schur`'s ``[[A, U], [Uᵀ, C]]``).
+    """
+    return float(
+        dz @ _gn_matvec(problem, lhs, dz) + 2.0 * dz @ (hzphi @ dphi) + dphi @ (hphi @ dphi)
+    )
+
+
+def _trust_radius(radius: float, rho: float, backtracked: bool, capped: bool) -> float:
+    """The joint step's next trust radius, in range bins.
+
+    ``rho`` is the step's decrease of E over the model's predicted decrease (0 for a rejected
+    step). The radius halves, down to a quarter of ``JOINT_STEP_BINS``, where the model was
+    poor or the step backtracked, and doubles where it bound the step and the model was good
+    (``JOINT_TRUST_RATIO``).
+    """
+    low, high = JOINT_TRUST_RATIO
+    if rho < low or backtracked:
+        return max(0.5 * radius, 0.25 * JOINT_STEP_BINS)
+    if rho > high and capped:
+        return 2.0 * radius
+    return radius
+
+
 def _gn_matvec(problem: Problem, lhs: sparse.csc_matrix, v: np.ndarray) -> np.ndarray:
     out = np.asarray(lhs @ v)
     if problem.w_line > 0:
@@ -1209,7 +1249,8 @@ def _gauss_newton(
     """Alternate Gauss-Newton steps on the Z knots and log Φ nodes with L-BFGS on R and Φ.
 
     Each step solves ``(H + H_line + μ D) δ = −g`` for Z and Φ together (``joint``; Φ's few
-    nodes eliminated, :func:`_schur`; else for Z with Φ held) to ``GAUSS_NEWTON_RTOL`` by
+    nodes eliminated, :func:`_schur`, and no Z knot moving by more than a trust radius,
+    :func:`_trust_radius`; else for Z with Φ held) to ``GAUSS_NEWTON_RTOL`` by
     conjugate gradients preconditioned with the sparse LU factors of Z's ``H + μ D``, or a
     multigrid V-cycle on it beyond ``AMG_KNOTS`` knots (D its diagonal; μ shrinks after a
     good step and grows after a bad one), deflated on the line prior's strongest directions
@@ -1227,6 +1268,7 @@ def _gauss_newton(
     value, grad = problem(p)
     count, damping = 1, 1e-3
     phis = slice(nz + problem.nr, problem.size)
+    radius = JOINT_STEP_BINS
     for k in range(int(steps)):
         if joint:
             h, hzphi, hphi = _fisher_z_beam(problem, p)
@@ -1246,11 +1288,15 @@ def _gauss_newton(
         pre = LinearOperator((nz, nz), matvec=_deflated(problem, lhs, _preconditioner(lhs)))
         step, _ = cg(op, rhs, M=pre, maxiter=30, rtol=GAUSS_NEWTON_RTOL)
         step_phi = None if back is None else back(step)
-        if step_phi is not None:  # a trust region on the joint step (JOINT_STEP_BINS)
+        value_before, capped = value, False
+        if step_phi is not None:  # the joint step's trust region
             biggest = float(np.max(np.abs(step))) if step.size else 0.0
-            cap = JOINT_STEP_BINS * problem.views[0].geom.range_bin
+            cap = radius * problem.views[0].geom.range_bin
             if biggest > cap:
                 step, step_phi = step * (cap / biggest), step_phi * (cap / biggest)
+                capped = True
+            slope = float(grad[:nz] @ step + grad[phis] @ step_phi)
+            curve = _model_curvature(problem, lhs, hzphi, hphi, step, step_phi)
         accepted = False
         for t in (1.0, 0.5, 0.25, 0.125):
             q = p.copy()
@@ -1262,6 +1308,10 @@ def _gauss_newton(
             if trial < value:
                 p, value, grad, accepted = q, trial, g_trial, True
                 break
+        if step_phi is not None:
+            predicted = -(t * slope + 0.5 * t * t * curve)
+            rho = (value_before - value) / predicted if accepted and predicted > 0 else 0.0
+            radius = _trust_radius(radius, rho, t < 1.0, capped)
         damping = damping * 0.3 if accepted else damping * 10.0
         p, value, n = _minimise(problem, p, INNER_ITERATIONS, free, problem.held_z(p))
         count += n
