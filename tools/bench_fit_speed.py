@@ -24,6 +24,8 @@ side (single-look speckle, the seabed mesh at 0.1 m cells, 12 m altitude) and fi
 - **alternating**: the package as it is with each Gauss-Newton step on Z alone, Φ held
   (``solve.JOINT_BEAM = False``, as before 2026-11-29's session 28; the joint step applies
   only where ``--finest`` is 1 or 2, so at the default 4 the two are the same);
+- **nadir-crest**: the package as it is with the first return's crest gap measured at the
+  nadir (``solve.CREST_SHIFTS = None``, as before 2026-11-29's session 29);
 - **new**: the package as it is.
 
 Per variant: fit seconds (with the uncertainty), seconds in the inner minimisation, in the
@@ -32,7 +34,7 @@ RMSE over the relief std as the bathymetry bench (the fit moves with rounding-le
 so differences below ~0.05 are noise) and the ratio to the baseline's seconds.
 
 Usage: ``python tools/bench_fit_speed.py [--pings 1000] [--bins 2000] [--finest 4]
-[--seabed sand] [--variants baseline,held,steps,threads,previous,alternating,new]``.
+[--seabed sand] [--variants baseline,held,steps,threads,previous,alternating,nadir-crest,new]``.
 """
 
 from __future__ import annotations
@@ -62,6 +64,7 @@ VARIANTS = {
     "threads": {"held": False, "steps": False, "threads": None},
     "previous": {"held": True, "steps": True, "threads": None, "previous": True},
     "alternating": {"held": True, "steps": True, "threads": None},
+    "nadir-crest": {"held": True, "steps": True, "threads": None, "joint": True, "nadir": True},
     "new": {"held": True, "steps": True, "threads": None, "joint": True},
 }
 #: The multigrid settings before 2026-11-28's second speed pass.
@@ -163,6 +166,8 @@ def run(field, tracks, images, finest: int, variant: dict) -> dict:
             patch(mock.patch.object(solve, "SHADOW_JACOBIAN", False))
         if not variant.get("joint"):  # every variant but new steps on Z alone
             patch(mock.patch.object(solve, "JOINT_BEAM", False))
+        if variant.get("nadir"):
+            patch(mock.patch.object(solve, "CREST_SHIFTS", None))
         if variant["threads"] is not None:
             patch(mock.patch.object(problem_module, "THREADS", variant["threads"]))
         patch(mock.patch.object(solve, "_minimise", meter.timed("inner", solve._minimise)))

@@ -87,17 +87,24 @@ def test_the_held_z_objective_equals_the_problems(monkeypatch, lines, deposit):
     )
 
 
+def _ridged(offsets, seed: int = 5):
+    """:func:`_problem`'s line at its start with ridges along track at ``offsets`` (metres
+    across track, port positive), each 0.3–0.5 m high and varying from ping to ping."""
+    problem, _, rng = _problem(seed, shadows=False)
+    p = solve._start(problem)
+    zc = p[: problem.nz].reshape(problem.kz)
+    knots_y, knots_x = problem.grid.knots("z")
+    for offset in offsets:
+        zc[:, np.argmin(np.abs(knots_x - offset))] += rng.uniform(0.3, 0.5, len(knots_y))
+    return problem, p, zc
+
+
 def test_the_anchor_offset_is_the_crests_the_data_confirm():
     """The first return reads a rough seabed's crests: the tracker on the model's own image
     reads above its level, and that gap comes off the tracked altitude as far as the data's
     first returns rise and fall with the model's from ping to ping (all of it when they do,
     none when the data's stay level)."""
-    problem, _, rng = _problem(5, shadows=False)
-    p = solve._start(problem)
-    zc = p[: problem.nz].reshape(problem.kz)
-    knots_y, knots_x = problem.grid.knots("z")
-    for side in (-1.0, 1.0):  # ridges along track 0.8 m to either side
-        zc[:, np.argmin(np.abs(knots_x - side * 0.8))] += rng.uniform(0.3, 0.5, len(knots_y))
+    problem, p, zc = _ridged((-0.8, 0.8))  # ridges along track 0.8 m to either side
     seen, depth = solve.model_first_return(problem, p, 0)
     gap = float(np.median(seen - depth))
     assert gap < -0.5 * problem.views[0].geom.range_bin  # crests read above the level
@@ -113,6 +120,44 @@ def test_the_anchor_offset_is_the_crests_the_data_confirm():
     lead.altitude[:] = float(np.mean(seen))  # the data's stay level
     solve._track_model(problem, p)
     assert problem.anchor_offset[0] == 0.0
+
+
+def test_shifted_moves_the_nadir_across_track():
+    """Cell ``j`` lies at ``(j + ½) dx`` from the nadir on its side; moved ``k`` cells to
+    port, port cell ``j`` holds port cell ``j + k`` and starboard cell ``j`` what lies at
+    ``(k − j − ½) dx`` across the old nadir."""
+    port = np.arange(10.0)[None, :] + 100.0
+    starboard = -np.arange(10.0)[None, :] - 1.0  # cell j: -(j + 1)
+    p0, s0 = solve._shifted(port, starboard, 0)
+    assert np.array_equal(p0, port) and np.array_equal(s0, starboard)
+    p2, s2 = solve._shifted(port, starboard, 2)
+    assert p2[0, :3].tolist() == [102.0, 103.0, 104.0]
+    assert p2[0, -1] == 109.0  # beyond the end: the end repeats
+    assert s2[0, :4].tolist() == [101.0, 100.0, -1.0, -2.0]
+    p3, s3 = solve._shifted(port, starboard, -2)  # to starboard: the mirror image
+    assert p3[0, :4].tolist() == [-2.0, -1.0, 100.0, 101.0]
+    assert s3[0, :3].tolist() == [-3.0, -4.0, -5.0]
+
+
+def test_the_crests_are_measured_where_the_shading_shows_them():
+    """With ``CREST_SHIFTS`` the gap is the tracker's on the model moved so that ground 30–50 %
+    of the altitude out lies under the nadir: a seabed rough everywhere reads crests there as
+    under the nadir (measured −4.7 and −3.7 cm), and a ridge under the track only, where the
+    fit's relief is least seen, reads nothing (+0.9 against −21.7 cm)."""
+    bins = 0.1  # _problem's range bin
+    problem, p, zc = _ridged(())
+    zc += np.random.default_rng(6).uniform(0.0, 0.8, zc.shape)  # rough everywhere
+    seen, depth = solve.model_first_return(problem, p, 0)
+    under = float(np.median(seen - depth))
+    shifted = solve._shifted_gap(problem, p, 0, 5.0, np.nan, solve.CREST_SHIFTS)
+    print("ridged: under the nadir", under, "moved", shifted)
+    assert under < -0.3 * bins and shifted < -0.3 * bins
+    problem, p, _ = _ridged((0.0,))  # a ridge under the track only
+    seen, depth = solve.model_first_return(problem, p, 0)
+    shifted = solve._shifted_gap(problem, p, 0, 5.0, np.nan, solve.CREST_SHIFTS)
+    print("under the track only: under", float(np.median(seen - depth)), "moved", shifted)
+    assert float(np.median(seen - depth)) < -1.0 * bins
+    assert abs(shifted) < 0.1 * bins
 
 
 def test_bspline_basis_reproduces_linear_functions():
@@ -924,13 +969,15 @@ def test_a_joint_step_falls_back_to_z_alone_where_the_beams_block_is_singular(mo
 @pytest.mark.parametrize(("finest", "joint"), [(1, True), (2, True), (4, False)])
 def test_fits_pooled_more_than_twice_step_on_z_alone(monkeypatch, finest, joint):
     """With Φ following Z the level rests on the first return less its crests, which knots
-    four pooled bins apart cannot show (sand waves at --coarsen 4 came out at their crests)."""
-    seen = []
+    four pooled bins apart cannot show (sand waves at --coarsen 4 came out at their crests);
+    there the crests are measured at the nadir itself (the moved nadir scored worse)."""
+    seen, moved = [], []
     plain = solve._gauss_newton
 
-    def record(*args, joint=False, **kwargs):
+    def record(*args, joint=False, shifts=None, **kwargs):
         seen.append(joint)
-        return plain(*args, joint=joint, **kwargs)
+        moved.append(shifts)
+        return plain(*args, joint=joint, shifts=shifts, **kwargs)
 
     monkeypatch.setattr(solve, "_gauss_newton", record)
     monkeypatch.setattr(solve, "GAUSS_NEWTON_STEPS", 1)
@@ -938,3 +985,4 @@ def test_fits_pooled_more_than_twice_step_on_z_alone(monkeypatch, finest, joint)
     line = layout.Line.straight(_flat_render(6.0), 0.05, 0.1)
     solve.fit_lines([line], finest=finest, uncertainty=False)
     assert seen == [joint, joint]
+    assert moved == [solve.CREST_SHIFTS if joint else None] * 2

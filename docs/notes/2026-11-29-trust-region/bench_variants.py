@@ -47,7 +47,8 @@ if args.variant == "uncapped":
 
 for alt in (6.0125, 6.0):
     steps.clear()
-    fit = surface.fit_surface(test_surface._flat_render(alt), 0.05, 0.1, uncertainty=False)
+    sides = test_surface._flat_render(alt)
+    fit = surface.fit_surface(sides, 0.05, ping_spacing=0.1, uncertainty=False)
     keep = (fit.x > 0.5) & (fit.x < fit.x[-1] - 1.5)
     error = np.concatenate([fit.elevation[s][:, keep] + alt for s in fit.elevation]) * 100
     print(f"flat {alt} m: mean {np.mean(error):+.2f} cm, rms {np.sqrt(np.mean(error**2)):.2f} cm")
