@@ -150,7 +150,7 @@ def test_the_crests_are_measured_where_the_shading_shows_them():
     seen, depth = solve.model_first_return(problem, p, 0)
     under = float(np.median(seen - depth))
     shifted = solve._shifted_gap(problem, p, 0, 5.0, np.nan, solve.CREST_SHIFTS)
-    print("ridged: under the nadir", under, "moved", shifted)
+    print("rough everywhere: under the nadir", under, "moved", shifted)
     assert under < -0.3 * bins and shifted < -0.3 * bins
     problem, p, _ = _ridged((0.0,))  # a ridge under the track only
     seen, depth = solve.model_first_return(problem, p, 0)
