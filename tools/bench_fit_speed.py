@@ -25,8 +25,8 @@ side (single-look speckle, the seabed mesh at 0.1 m cells, 12 m altitude) and fi
   (``solve.JOINT_BEAM = False``, as before 2026-11-29's session 28; the joint step applies
   only where ``--finest`` is 1 or 2, so at the default 4 the two are the same);
 - **nadir-crest**: the package as it is with the first return's crest gap measured at the
-  nadir (``solve.CREST_SHIFTS = None``, as before 2026-11-29's session 29; only unpooled fits,
-  ``--finest 1``, move it, so elsewhere the two are the same);
+  nadir (``solve.CREST_SHIFTS = None``, as before 2026-11-29's session 29; only fits with
+  ``--finest`` 1 or 2 move it, so at the default 4 the two are the same);
 - **new**: the package as it is.
 
 Per variant: fit seconds (with the uncertainty), seconds in the inner minimisation, in the
