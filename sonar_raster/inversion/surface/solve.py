@@ -1096,7 +1096,11 @@ def _shifted(port: np.ndarray, starboard: np.ndarray, k: int) -> tuple[np.ndarra
 
 
 def model_first_return(
-    problem: Problem, p: np.ndarray, line: int, shift: int = 0
+    problem: Problem,
+    p: np.ndarray,
+    line: int,
+    shift: int = 0,
+    fields: Mapping[str, tuple[np.ndarray, np.ndarray]] | None = None,
 ) -> tuple[np.ndarray, np.ndarray] | None:
     """The bottom tracker's altitude on the model's image of one line, and the model's level.
 
@@ -1104,8 +1108,8 @@ def model_first_return(
     the level per ping is the mean depth below the transducer over the nadir's fold (ground
     within ``√(2 h Δ)`` of nadir, where the slant range stays within one bin of the altitude
     h). With ``shift`` the model's Z and R are first moved that many cells across track
-    (:func:`_shifted`; the line's port and starboard views). None where the tracker finds no
-    return.
+    (:func:`_shifted`; the line's port and starboard views). ``fields``: each side's Z and R
+    at ``p`` where the caller has them already. None where the tracker finds no return.
     """
     from ..bottom import track_bottom
 
@@ -1113,7 +1117,8 @@ def model_first_return(
     sides, depths = {}, []
     lead = views[0]
     fold = math.sqrt(2.0 * float(np.nanmedian(lead.altitude)) * lead.geom.range_bin)
-    fields = {view.side: problem.fields(p, view)[:2] for view in views}
+    if fields is None:
+        fields = {view.side: problem.fields(p, view)[:2] for view in views}
     if shift:
         zp, zs = _shifted(fields["port"][0], fields["starboard"][0], shift)
         rp, rs = _shifted(fields["port"][1], fields["starboard"][1], shift)
@@ -1142,11 +1147,11 @@ def _track_model(problem: Problem, p: np.ndarray, shifts: tuple[float, ...] | No
     The first return reads a rough seabed's crests, not its level. The offset is how far the
     tracker on the model's own image reads above the model's level (:func:`model_first_return`,
     the median over pings; with ``shifts``, measured with the nadir moved to where the shading
-    shows the relief, :func:`_shifted_gap`), times how much of that the data confirm: the regression
-    slope, over pings, of the data's first-return height on the model's (heights in the lines'
-    common datum, so the sonar's heave drops out where the transducer height is known), clipped
-    to [0, 1]. Where the model's relief near nadir is real its crests come and go with the data's;
-    where it is the fit's noise, they do not, and the offset vanishes.
+    shows the relief, :func:`_shifted_gap`), times how much of that the data confirm: the
+    regression slope, over pings, of the data's first-return height on the model's (heights in
+    the lines' common datum, so the sonar's heave drops out where the transducer height is
+    known), clipped to [0, 1]. Where the model's relief near nadir is real its crests come and
+    go with the data's; where it is the fit's noise, they do not, and the offset vanishes.
     """
     for line, lead in problem.anchored.items():
         found = model_first_return(problem, p, line)
@@ -1180,21 +1185,22 @@ def _shifted_gap(
 ) -> float:
     """The crest gap of :func:`_track_model` with the nadir moved across track.
 
-    The mean, over ``shifts`` (fractions of the altitude) on either side, of each move's median over
-    pings; ``gap`` (the nadir's own) where the line lacks a side or every move falls off the
-    swath.
+    The mean, over ``shifts`` (fractions of the altitude) on either side, of each move's median
+    over pings; ``gap`` (the nadir's own) where the line lacks a side or every move falls off
+    the swath.
     """
     views = [v for v in problem.views if v.line == line]
     if {v.side for v in views} != {"port", "starboard"} or views[0].shape != views[1].shape:
         return gap
     cells = views[0].shape[1]
+    fields = {view.side: problem.fields(p, view)[:2] for view in views}  # once for every move
     gaps = []
     for fraction in shifts:
         k = round(fraction * altitude / float(views[0].geom.dx))
         if not 0 < k < cells // 2:
             continue
         for sign in (1, -1):
-            found = model_first_return(problem, p, line, sign * k)
+            found = model_first_return(problem, p, line, sign * k, fields)
             if found is not None and np.isfinite(found[0]).sum() >= 3:
                 seen, depth = found
                 gaps.append(float(np.nanmedian(seen - depth)))
