@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 
 from .._checks import cli_positive
 from ..errors import SonarRasterError
-from .track import parse_pings
+from .track import add_xtf_frequency, parse_pings, parse_xtf_frequency
 
 if TYPE_CHECKING:
     from ..inversion.solver import BeamProfile
@@ -174,6 +174,7 @@ def add_parser(sub: Any) -> None:
     inv.add_argument(
         "--pings", metavar="A:B", help="XTF input: ping range to invert (indices, stop excluded)"
     )
+    add_xtf_frequency(inv)
     inv.add_argument(
         "--force",
         action="store_true",
@@ -663,7 +664,12 @@ def _invert_lines(args: argparse.Namespace) -> int:
             "invert fewer files or pings at a time",
             args,
         )
-    lines, notes = ml.read_lines(args.image, split=split, pings=parse_pings(args.pings))
+    lines, notes = ml.read_lines(
+        args.image,
+        split=split,
+        pings=parse_pings(args.pings),
+        frequency=parse_xtf_frequency(args.xtf_frequency),
+    )
     if not args.quiet:
         for note in notes or [ml.describe_lines(lines)]:
             print(note)
@@ -830,7 +836,9 @@ def _invert_xtf(args: argparse.Namespace) -> int:
     if args.method == "auto":  # read here to choose, and handed on
         from ..io.xtf import read_xtf
 
-        recording = read_xtf(args.image, parse_pings(args.pings))
+        recording = read_xtf(
+            args.image, parse_pings(args.pings), parse_xtf_frequency(args.xtf_frequency)
+        )
         sides = _xtf_sides(recording, args.side)
         _choose_method(args, [sides])
         pixels = sum(v.size for v in sides.values())  # the chosen method's estimate, said
@@ -845,6 +853,7 @@ def _invert_xtf(args: argparse.Namespace) -> int:
         progress=not args.quiet,
         method=args.method,
         recording=recording,
+        frequency=parse_xtf_frequency(args.xtf_frequency),
         **_line_options(args, BeamProfile),
     )
     image, nav = result.image, result.navigation

@@ -33,6 +33,30 @@ def parse_pings(text: str | None) -> slice | None:
     return slice(start, stop)
 
 
+def parse_xtf_frequency(text: str | None) -> float | str | None:
+    """``--xtf-frequency``: "low", "high" or a frequency in kHz, as ``read_xtf`` takes it."""
+    if text is None or text in ("low", "high"):
+        return text
+    try:
+        khz = float(text)
+    except ValueError:
+        khz = float("nan")
+    if not (np.isfinite(khz) and khz > 0):
+        raise SonarRasterError(
+            f"--xtf-frequency {text!r}: use low, high or the channels' frequency in kHz, e.g. 900"
+        )
+    return khz * 1e3
+
+
+def add_xtf_frequency(parser: Any) -> None:
+    """Add ``--xtf-frequency`` (which pair of a dual-frequency file's channels to read)."""
+    parser.add_argument(
+        "--xtf-frequency",
+        metavar="F",
+        help="XTF input with several frequencies: low, high or kHz (default: the first pair)",
+    )
+
+
 def add_parser(sub: Any) -> None:
     """Add the ``track`` subcommand to an argparse subparsers object."""
     track = sub.add_parser(
@@ -45,6 +69,7 @@ def add_parser(sub: Any) -> None:
     track.add_argument("file", help="XTF file")
     track.add_argument("-o", "--output", metavar="OUT", help="output .png or .csv")
     track.add_argument("--pings", metavar="A:B", help="ping range (indices, stop excluded)")
+    add_xtf_frequency(track)
     track.add_argument("-q", "--quiet", action="store_true", help="no summary")
 
 
@@ -59,7 +84,8 @@ def run(args: argparse.Namespace) -> int:
         if out.suffix.lower() not in TRACK_SUFFIXES:
             raise SonarRasterError(f"output {out}: unknown extension; use .png or .csv")
         check_writable(out)
-    image, nav = read_xtf(args.file, parse_pings(args.pings))
+    frequency = parse_xtf_frequency(args.xtf_frequency)
+    image, nav = read_xtf(args.file, parse_pings(args.pings), frequency)
     from ..inversion.bottom import track_bottom
 
     track = track_bottom(image.sides, image.sonar.range_bin)

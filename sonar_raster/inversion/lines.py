@@ -184,6 +184,7 @@ def read_lines(
     split: bool | list[tuple[int, int]] = False,
     pings: slice | None = None,
     amplitude: bool = True,
+    frequency: float | str | None = None,
 ) -> tuple[list[Line], list[str]]:
     """Read XTF files as survey lines.
 
@@ -199,6 +200,8 @@ def read_lines(
     amplitude : bool
         The samples are envelope amplitudes: the intensity is their square (as
         :func:`.xtf.invert_xtf`).
+    frequency : float or {"low", "high"}, optional
+        Dual-frequency files: the channels to read (``read_xtf``'s ``frequency``).
 
     Returns
     -------
@@ -223,7 +226,7 @@ def read_lines(
     lines: list[Line] = []
     notes: list[str] = []
     for path in paths:
-        image, nav = read_xtf(path, pings)
+        image, nav = read_xtf(path, pings, frequency)
         if not nav.valid.any():
             raise SonarRasterError(
                 f"{path} has no navigation: lines can only be combined on "

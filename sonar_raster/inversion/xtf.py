@@ -126,6 +126,7 @@ def invert_xtf(
     progress: bool = False,
     method: str = "profiles",
     recording: tuple | None = None,
+    frequency: float | str | None = None,
     **options,
 ) -> XtfInversion:
     """Read an XTF file, track the bottom and invert each side.
@@ -154,6 +155,8 @@ def invert_xtf(
         sides (:func:`.surface.invert_lines`, with ``elevation_std``).
     recording : tuple, optional
         ``read_xtf(path, pings)`` already done (image, navigation): the file is not read again.
+    frequency : float or {"low", "high"}, optional
+        Dual-frequency files: the channels to read (``read_xtf``'s ``frequency``).
     **options
         Passed to :func:`.solver.invert` (``max_iter``, ``levels``, ``tol``,
         ``beam``); for ``"surface"`` only ``max_iter``, ``looks``, ``beam`` and ``finest``.
@@ -165,7 +168,7 @@ def invert_xtf(
     from .bottom import blanking_bins
     from .solver import invert
 
-    image, nav = read_xtf(path, pings) if recording is None else recording
+    image, nav = read_xtf(path, pings, frequency) if recording is None else recording
     dr = image.sonar.range_bin
     track = track_bottom(image.sides, dr)
     alt = np.full(image.shape[0], float(altitude)) if altitude else track.altitude

@@ -7,10 +7,12 @@ Reading streams the file packet by packet (:class:`XtfReader`, one :class:`XtfPi
 Conventions (checked on the OpenSidescan sample and by the round-trip tests):
 
 - The side of a channel is ``TypeOfChannel`` of its ``ChanInfo`` entry (1 port, 2 starboard);
-  the first port and the first starboard channel are read, other channels are skipped. A side
-  the header's ``NumberOfSonarChannels`` leaves out is read from an entry past the count that
-  describes it (with a sample size), with a warning. With one side known, pings that carry
-  more channels than the header describes draw a warning that the others are not read.
+  one port and one starboard channel are read (a dual-frequency file's pairs are told apart
+  by ``Frequency``, else by order; the first pair unless ``frequency`` asks), other channels
+  are skipped. A side the header's ``NumberOfSonarChannels`` leaves out is read from an entry
+  past the count that describes it (with a sample size), with a warning. With one side known,
+  pings that carry more channels than the header describes draw a warning that the others
+  are not read.
 - Port samples are stored from far range to nadir, starboard samples from nadir outward (as
   pyxtf's ``concatenate_channel`` assumes); :class:`SonarImage` sides run from range 0 outward.
 - Sample spacing is ``SlantRange / NumSamples`` (or ``TimeDuration · c / 2 / NumSamples`` when
@@ -51,7 +53,7 @@ import math
 import os
 import struct
 from collections import Counter
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, BinaryIO
@@ -214,6 +216,10 @@ class XtfReader:
     ----------
     path : str or PathLike
         The ``.xtf`` file.
+    frequency : float or {"low", "high"}, optional
+        Which channels of a dual-frequency file to read: the pair nearest this frequency (Hz,
+        within 5 %), or the lower or higher one; default the first pair, with a warning line
+        naming the others. An error where the file has no such channels.
 
     Attributes
     ----------
@@ -224,7 +230,7 @@ class XtfReader:
     units : str
         "degrees" (longitude, latitude) or "metres" (easting, northing).
     frequency_hz : float
-        Centre frequency of the first side-scan channel, Hz (0 when the file does not say).
+        Centre frequency of the side-scan channels read, Hz (0 when the file does not say).
     tilt_deg : float
         Depression of the first side-scan channel's beam axis, degrees (0 when not given).
     skipped : list of SkippedPing
@@ -233,13 +239,13 @@ class XtfReader:
         Side-scan pings read so far, skipped ones included.
     """
 
-    def __init__(self, path: str | os.PathLike) -> None:
+    def __init__(self, path: str | os.PathLike, frequency: float | str | None = None) -> None:
         self.path = Path(path)
         self._size = _file_size(self.path)
         self._fh: BinaryIO | None = open(self.path, "rb")  # noqa: SIM115 - closed by close()
         try:
             self.header = self._read_header()
-            self.channels = _side_channels(self.header, self.path)
+            self.channels = _side_channels(self.header, self.path, frequency)
             # channel k of a packet is described by sonar_info[k]; past the header's count (a
             # side found beyond it, _side_channels) by ChanInfo[k]
             self._info = list(self.header.sonar_info)
@@ -484,32 +490,98 @@ def _file_size(path: Path) -> int:
     return size
 
 
-def _side_channels(header: Any, path: Path) -> dict[str, int]:
-    """Side name to ChanInfo index: the first port and the first starboard channel.
+def _side_channels(header: Any, path: Path, frequency: float | str | None = None) -> dict[str, int]:
+    """Side name to ChanInfo index: the port and starboard channels of one frequency.
 
     A side missing from the channels the header counts is taken from the ChanInfo entries past
     the count (of the first file header's 6) when one describes it with a sample size, so a
-    count of 1 in a two-sided file does not drop starboard; a warning says so.
+    count of 1 in a two-sided file does not drop starboard; a warning says so. The counted
+    side-scan channels are grouped into sets of one port and one starboard channel (by
+    ``Frequency`` where the header gives it, else in order: a dual-frequency file's two pairs);
+    ``frequency`` picks one (:func:`_chosen_set`), by default the first, with a line naming the
+    others.
     """
-    out: dict[str, int] = {}
     n = min(int(header.NumberOfSonarChannels), 6)
+    sets: list[tuple[float, dict[str, int]]] = []
     for k in range(6):
         info = header.ChanInfo[k]
         side = {_PORT: "port", _STARBOARD: "starboard"}.get(int(info.TypeOfChannel))
-        if side is None or side in out:
+        if side is None or (k >= n and int(info.BytesPerSample) not in _SIZE_DTYPES):
             continue
+        khz = _channel_khz(info)
+        for i, (f, members) in enumerate(sets):
+            if side not in members and (f == khz or 0.0 in (f, khz) or k >= n):
+                members[side] = k
+                sets[i] = (f or khz, members)
+                break
+        else:
+            if k < n or not sets:  # past the count an entry only completes a pair
+                sets.append((khz, {side: k}))
+    if not sets:
+        raise SonarRasterError(f"{path} has no port or starboard side-scan channel")
+    out = _chosen_set(sets, frequency, path)
+    for side, k in out.items():
         if k >= n:
-            if int(info.BytesPerSample) not in _SIZE_DTYPES:
-                continue
             log.warning(
                 "%s: the header counts %d sonar channel(s) but ChanInfo %d describes the %s "
                 "side: reading it too",
                 path, n, k, side,
             )  # fmt: skip
-        out[side] = k
-    if not out:
-        raise SonarRasterError(f"{path} has no port or starboard side-scan channel")
     return dict(sorted(out.items()))
+
+
+def _channel_khz(info: Any) -> float:
+    """A ChanInfo entry's frequency in kHz (0 where the file does not say)."""
+    khz = float(info.Frequency)
+    return khz if 0.0 < khz < 1e6 else 0.0
+
+
+def _chosen_set(
+    sets: list[tuple[float, dict[str, int]]], frequency: float | str | None, path: Path
+) -> dict[str, int]:
+    """The channel set ``frequency`` asks for: None (the first), "low", "high" or a number (Hz).
+
+    A file with several sets read without a choice says which one is read and how to read the
+    others; a choice the file cannot meet is an error naming what it has.
+    """
+    known = all(f > 0 for f, _ in sets)
+    names = ", ".join(f"{f:g} kHz" if f > 0 else f"channels {sorted(m.values())}" for f, m in sets)
+    if frequency is None:
+        if len(sets) > 1:
+            f, members = sets[0]
+            what = f"{f:g} kHz" if f > 0 else f"ChanInfo {sorted(members.values())}"
+            log.warning(
+                "%s: side-scan channels at %s; reading %s (choose with --xtf-frequency "
+                "low/high/kHz, or read_xtf(frequency=...))",
+                path, names, what,
+            )  # fmt: skip
+        return sets[0][1]
+    if isinstance(frequency, str):
+        if frequency not in ("low", "high"):
+            raise SonarRasterError(
+                f"frequency must be 'low', 'high' or a number in Hz, got {frequency!r}"
+            )
+        if len(sets) == 1:
+            return sets[0][1]
+        if not known:
+            raise SonarRasterError(
+                f"{path} does not record its channels' frequencies ({names}): 'low' and "
+                "'high' cannot be told apart"
+            )
+        pick = min if frequency == "low" else max
+        return pick(sets, key=lambda item: item[0])[1]
+    hz = float(frequency)
+    if not (math.isfinite(hz) and hz > 0):
+        raise SonarRasterError(f"frequency must be a positive number of Hz, got {frequency!r}")
+    for f, members in sets:
+        if f > 0 and abs(f * 1e3 - hz) <= 0.05 * hz:
+            return members
+    if len(sets) == 1 and sets[0][0] == 0.0:
+        return sets[0][1]  # one set, no frequency recorded: the only choice there is
+    raise SonarRasterError(
+        f"{path} has no side-scan channels at {hz / 1e3:g} kHz (it has {names}); give one of "
+        "those, or low / high"
+    )
 
 
 def _sound_speed(field: float, chan: Any) -> float:
@@ -608,12 +680,12 @@ def _make_ping(
     )
 
 
-def iter_pings(path: str | os.PathLike) -> Iterator[XtfPing]:
+def iter_pings(path: str | os.PathLike, frequency: float | str | None = None) -> Iterator[XtfPing]:
     """Yield the side-scan pings of an XTF file one at a time (see :class:`XtfReader`).
 
     Skipped pings are logged in one warning line once the file has been read through.
     """
-    with XtfReader(path) as reader:
+    with XtfReader(path, frequency) as reader:
         blanked = [0, 0]
         for ping in reader:
             blanked[0] += ping.blanked
@@ -813,7 +885,7 @@ class XtfNavigation:
 
 
 def read_xtf(
-    path: str | os.PathLike, pings: slice | None = None
+    path: str | os.PathLike, pings: slice | None = None, frequency: float | str | None = None
 ) -> tuple[SonarImage, XtfNavigation]:
     """Read the side-scan pings of an XTF file into an image and its navigation.
 
@@ -824,6 +896,9 @@ def read_xtf(
     pings : slice, optional
         Which pings to keep (by index among the side-scan pings, skipped ones included), e.g.
         ``slice(100, 200)``.
+    frequency : float or {"low", "high"}, optional
+        A dual-frequency file's channels to read (as :class:`XtfReader`): Hz, or "low" /
+        "high"; default the first port and starboard pair.
 
     Returns
     -------
@@ -852,7 +927,7 @@ def read_xtf(
     keep = pings or slice(None)
     forward = all(v is None or v >= 0 for v in (keep.start, keep.stop))
     rows: list[XtfPing] = []
-    with XtfReader(path) as reader:
+    with XtfReader(path, frequency) as reader:
         for ping in reader:
             if forward and keep.stop is not None and ping.index >= keep.stop:
                 break
@@ -902,7 +977,7 @@ def read_xtf(
 
 
 def read_xtf_track(
-    path: str | os.PathLike, pings: slice | None = None
+    path: str | os.PathLike, pings: slice | None = None, frequency: float | str | None = None
 ) -> tuple[Trajectory, np.ndarray, SonarImage]:
     """The track of an XTF recording in local metres, its recorded altitude, and its image.
 
@@ -912,6 +987,8 @@ def read_xtf_track(
         The ``.xtf`` file; it must have navigation.
     pings : slice, optional
         Which pings to keep, as in :func:`read_xtf`.
+    frequency : float or {"low", "high"}, optional
+        A dual-frequency file's channels, as in :func:`read_xtf`.
 
     Returns
     -------
@@ -930,7 +1007,7 @@ def read_xtf_track(
     SonarRasterError
         As :func:`read_xtf`, or if no ping has a position.
     """
-    image, nav = read_xtf(path, pings)
+    image, nav = read_xtf(path, pings, frequency)
     if not nav.valid.any():
         raise SonarRasterError(f"{path}: no ping has a position; the file has no track to reuse")
     east, north = nav.projected()
@@ -1229,7 +1306,7 @@ def _window_span(clock: np.ndarray) -> np.ndarray:
 
 def write_xtf(
     path: str | os.PathLike,
-    image: SonarImage,
+    image: SonarImage | Sequence[SonarImage],
     trajectory: Trajectory,
     *,
     altitude: float | np.ndarray | None = None,
@@ -1244,8 +1321,10 @@ def write_xtf(
     ----------
     path : str or PathLike
         Output ``.xtf``; written to a temporary name and renamed into place.
-    image : SonarImage
-        Pings × range bins per side, linear intensity >= 0.
+    image : SonarImage or sequence of SonarImage
+        Pings × range bins per side, linear intensity >= 0. Several images (the same pings,
+        e.g. the two frequencies of a dual-frequency side-scan) are written as one file, their
+        channels in order, each with its own frequency, range and sample count.
     trajectory : Trajectory
         One pose per ping: positions in metres (x east, y north, z up), compass heading, roll.
     altitude : float or ndarray of shape (pings,), optional
@@ -1277,17 +1356,18 @@ def write_xtf(
     """
     if sample_format not in _SAMPLE_FORMATS:
         raise SonarRasterError(f"sample_format must be float32 or uint16, got {sample_format!r}")
-    pings, bins = image.shape
+    bands = _bands(image)
+    pings = bands[0].shape[0]
     if trajectory.n_pings != pings:
         raise SonarRasterError(
             f"the trajectory has {trajectory.n_pings} poses for {pings} pings; give one per ping"
         )
-    for side, values in image.sides.items():
-        if not (np.all(np.isfinite(values)) and np.all(values >= 0)):
-            raise SonarRasterError(f"the {side} side has negative or non-finite intensities")
+    for band in bands:
+        for side, values in band.sides.items():
+            if not (np.all(np.isfinite(values)) and np.all(values >= 0)):
+                raise SonarRasterError(f"the {side} side has negative or non-finite intensities")
     alt = np.broadcast_to(np.asarray(0.0 if altitude is None else altitude, float), (pings,))
-    sonar = image.sonar
-    interval = ping_interval or 2.0 * bins * sonar.range_bin / sonar.sound_speed
+    interval = ping_interval or _listen_time(bands)
     from .commit import commit
 
     final = Path(path)
@@ -1296,7 +1376,7 @@ def write_xtf(
 
     def writer(tmp: Path) -> None:
         with open(tmp, "xb") as fh:
-            XtfWriter(fh, sample_format, origin, start_time, interval).write(image, trajectory, alt)
+            XtfWriter(fh, sample_format, origin, start_time, interval).write(bands, trajectory, alt)
 
     commit([(final, writer)])
     return final
@@ -1325,24 +1405,51 @@ class XtfWriter:
         self.start_time, self.interval = start_time, interval
         self.pings = 0
 
-    def write(self, image: SonarImage, trajectory: Trajectory, altitude: np.ndarray) -> None:
-        """Append ``image``'s pings with their poses (``trajectory``) and altitudes (metres)."""
+    def write(
+        self,
+        image: SonarImage | Sequence[SonarImage],
+        trajectory: Trajectory,
+        altitude: np.ndarray,
+    ) -> None:
+        """Append ``image``'s pings with their poses (``trajectory``) and altitudes (metres).
+
+        Several images (the same pings at several frequencies) are written as one ping's
+        channels, in order.
+        """
+        bands = _bands(image)
         if self.pings == 0:
-            self.fh.write(_file_header(image, self.sample_format).to_bytes())
-        sonar = image.sonar
-        interval = self.interval or 2.0 * image.shape[1] * sonar.range_bin / sonar.sound_speed
-        for i in range(image.shape[0]):
+            self.fh.write(_file_header(bands, self.sample_format).to_bytes())
+        interval = self.interval or _listen_time(bands)
+        for i in range(bands[0].shape[0]):
             n = self.pings + i
             packet = _ping_packet(
-                image, trajectory, i, float(altitude[i]), self.origin,
+                bands, trajectory, i, float(altitude[i]), self.origin,
                 self.start_time + n * interval, interval, self.sample_format,
             )  # fmt: skip
             packet.PingNumber = n
             self.fh.write(packet.to_bytes())
-        self.pings += image.shape[0]
+        self.pings += bands[0].shape[0]
 
 
-def _file_header(image: SonarImage, sample_format: str) -> Any:
+def _bands(image: SonarImage | Sequence[SonarImage]) -> list[SonarImage]:
+    """The images of one file (one per frequency), checked to share their pings."""
+    bands = [image] if isinstance(image, SonarImage) else list(image)
+    if not bands:
+        raise SonarRasterError("no image to write")
+    if len({b.shape[0] for b in bands}) > 1:
+        counts = ", ".join(str(b.shape[0]) for b in bands)
+        raise SonarRasterError(f"the images to write in one file have {counts} pings; give equal")
+    if sum(len(b.sides) for b in bands) > 6:
+        raise SonarRasterError("an XTF file header describes at most 6 channels")
+    return bands
+
+
+def _listen_time(bands: Sequence[SonarImage]) -> float:
+    """Two-way travel time of the longest range among the images, seconds."""
+    return max(2.0 * b.shape[1] * b.sonar.range_bin / b.sonar.sound_speed for b in bands)
+
+
+def _file_header(bands: Sequence[SonarImage], sample_format: str) -> Any:
     pyxtf = _pyxtf()
     code, nbytes, _ = _SAMPLE_FORMATS[sample_format]
     header = pyxtf.XTFFileHeader()
@@ -1351,8 +1458,9 @@ def _file_header(image: SonarImage, sample_format: str) -> Any:
     header.SonarName = b"sonar_raster"
     header.NoteString = b"simulated by sonar_raster; positions in metres, x east, y north"
     header.NavUnits = 0
-    header.NumberOfSonarChannels = len(image.sides)
-    for k, side in enumerate(image.sides):
+    channels = [(band.sonar, side) for band in bands for side in band.sides]
+    header.NumberOfSonarChannels = len(channels)
+    for k, (sonar, side) in enumerate(channels):
         info = header.ChanInfo[k]
         info.TypeOfChannel = _PORT if side == "port" else _STARBOARD
         info.SubChannelNumber = k
@@ -1361,14 +1469,14 @@ def _file_header(image: SonarImage, sample_format: str) -> Any:
         info.BytesPerSample = nbytes
         info.SampleFormat = code
         info.ChannelName = side.upper().encode()
-        info.Frequency = image.sonar.frequency_hz / 1e3
-        info.TiltAngle = math.degrees(image.sonar.tilt)
+        info.Frequency = sonar.frequency_hz / 1e3
+        info.TiltAngle = math.degrees(sonar.tilt)
         info.BeamsPerArray = 1
     return header
 
 
 def _ping_packet(
-    image: SonarImage,
+    bands: Sequence[SonarImage],
     track: Trajectory,
     i: int,
     altitude: float,
@@ -1378,7 +1486,7 @@ def _ping_packet(
     sample_format: str,
 ) -> Any:
     pyxtf = _pyxtf()
-    sonar = image.sonar
+    sonar = bands[0].sonar
     ping = pyxtf.XTFPingHeader()
     ping.MagicNumber = XTF_MAGIC
     _set_time(ping, time)
@@ -1393,7 +1501,8 @@ def _ping_packet(
     ping.SensorPrimaryAltitude = altitude
     ping.SensorDepth = -z
     chans, data = [], []
-    for k, (side, values) in enumerate(image.sides.items()):
+    channels = [(band.sonar, side, values) for band in bands for side, values in band.sides.items()]
+    for k, (sonar, side, values) in enumerate(channels):
         samples, weight = _encode(values[i], sample_format)
         chan = pyxtf.XTFPingChanHeader()
         chan.ChannelNumber = k

@@ -1,0 +1,172 @@
+"""Dual-frequency XTF files: several images written as one file, one pair of channels read."""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from sonar_raster.cli.app import main
+from sonar_raster.errors import SonarRasterError
+from sonar_raster.image import SonarImage
+from sonar_raster.io.xtf import XtfReader, read_xtf, read_xtf_track, write_xtf
+from sonar_raster.sonar import Sonar
+from sonar_raster.trajectory import Trajectory
+
+pyxtf = pytest.importorskip("pyxtf")
+
+PINGS = 30
+
+
+def _band(khz: float, bins: int, range_bin: float, seed: int) -> SonarImage:
+    """Two sides of distinct random intensities (no two bands share a value), a seabed from
+    12 m of slant range on."""
+    sonar = Sonar(
+        frequency_hz=khz * 1e3, max_range=bins * range_bin, range_bin=range_bin,
+        tilt=math.radians(10.0),
+    )  # fmt: skip
+    rng = np.random.default_rng(seed)
+    water = (np.arange(bins) + 0.5) * range_bin < 12.0
+    sides = {
+        s: np.where(water, 0.0, rng.exponential(1.0 + seed, (PINGS, bins))).astype(np.float32)
+        for s in sonar.sides
+    }
+    return SonarImage(sides, sonar, {})
+
+
+@pytest.fixture(scope="module")
+def dual(tmp_path_factory):
+    """A 445 / 900 kHz file (low pair first, as Klein and EdgeTech record them) and its bands."""
+    low, high = _band(445.0, 300, 0.1, 1), _band(900.0, 500, 0.03, 2)
+    track = Trajectory.straight((50.0, 80.0, -20.0), 30.0, 0.2, PINGS)
+    path = write_xtf(tmp_path_factory.mktemp("dual") / "dual.xtf", [low, high], track)
+    return path, low, high
+
+
+def _same(image: SonarImage, band: SonarImage) -> None:
+    for side in band.sides:
+        np.testing.assert_array_equal(image.sides[side], band.sides[side])
+    assert image.sonar.frequency_hz == band.sonar.frequency_hz
+    assert image.sonar.range_bin == pytest.approx(band.sonar.range_bin, rel=1e-6)
+
+
+def test_the_file_holds_four_channels_each_with_its_frequency(dual):
+    path, low, high = dual
+    header, packets = pyxtf.xtf_read(str(path))
+    assert header.NumberOfSonarChannels == 4
+    assert [header.ChanInfo[k].Frequency for k in range(4)] == [445.0, 445.0, 900.0, 900.0]
+    ping = packets[pyxtf.XTFHeaderType.sonar][0]
+    assert [c.NumSamples for c in ping.ping_chan_headers] == [300, 300, 500, 500]
+
+
+def test_the_first_pair_is_read_by_default_and_the_others_are_named(dual, caplog):
+    path, low, _ = dual
+    with caplog.at_level(logging.WARNING, logger="sonar_raster.io.xtf"):
+        image, _ = read_xtf(path)
+    _same(image, low)
+    assert image.metadata["channels"] == {"port": 0, "starboard": 1}
+    said = " ".join(r.getMessage() for r in caplog.records)
+    assert "445 kHz, 900 kHz" in said and "--xtf-frequency" in said
+
+
+@pytest.mark.parametrize("choice", ["high", 900e3, 880e3])
+def test_the_high_pair_is_read_when_asked(dual, choice, caplog):
+    path, _, high = dual
+    with caplog.at_level(logging.WARNING, logger="sonar_raster.io.xtf"):
+        image, nav = read_xtf(path, frequency=choice)
+    _same(image, high)
+    assert image.metadata["channels"] == {"port": 2, "starboard": 3}
+    assert nav.valid.all() and not caplog.records  # a choice made: nothing to say
+    track, _, again = read_xtf_track(path, slice(5, 10), frequency=choice)
+    assert track.n_pings == 5 and again.shape == (5, 500)
+
+
+@pytest.mark.parametrize("choice", ["low", 445e3])
+def test_the_low_pair_is_read_when_asked(dual, choice):
+    path, low, _ = dual
+    _same(read_xtf(path, frequency=choice)[0], low)
+
+
+@pytest.mark.parametrize(
+    ("choice", "says"),
+    [(600e3, "no side-scan channels at 600 kHz (it has 445 kHz, 900 kHz)"),
+     ("middle", "'low', 'high' or a number"), (-1.0, "positive number")],
+)  # fmt: skip
+def test_a_choice_the_file_cannot_meet_is_one_clear_error(dual, choice, says):
+    with pytest.raises(SonarRasterError, match=r".*") as err:
+        XtfReader(dual[0], frequency=choice)
+    assert says in str(err.value) and "\n" not in str(err.value)
+
+
+def test_pairs_without_recorded_frequencies_go_by_order(dual, tmp_path, caplog):
+    path, low, high = dual
+    raw = bytearray(path.read_bytes())
+    header = pyxtf.XTFFileHeader.create_from_buffer(bytes(raw[:1024]))
+    for k in range(4):
+        header.ChanInfo[k].Frequency = 0.0
+    raw[:1024] = header.to_bytes()[:1024]
+    blind = tmp_path / "blind.xtf"
+    blind.write_bytes(bytes(raw))
+    with caplog.at_level(logging.WARNING, logger="sonar_raster.io.xtf"):
+        image, _ = read_xtf(blind)
+    np.testing.assert_array_equal(image.sides["port"], low.sides["port"])
+    assert "ChanInfo [0, 1]" in caplog.text and "channels [2, 3]" in caplog.text
+    with pytest.raises(SonarRasterError, match="cannot be told apart"):
+        read_xtf(blind, frequency="high")
+
+
+def test_a_single_frequency_file_reads_as_before(tmp_path, caplog):
+    band = _band(600.0, 200, 0.05, 3)
+    track = Trajectory.straight((0.0, 0.0, -10.0), 0.0, 0.2, PINGS)
+    path = write_xtf(tmp_path / "one.xtf", band, track)
+    with caplog.at_level(logging.WARNING, logger="sonar_raster.io.xtf"):
+        for choice in (None, "low", "high", 600e3):
+            _same(read_xtf(path, frequency=choice)[0], band)
+    assert not caplog.records
+    with pytest.raises(SonarRasterError, match="it has 600 kHz"):
+        read_xtf(path, frequency=900e3)
+
+
+def test_images_of_unequal_pings_are_not_written(tmp_path):
+    low, high = _band(445.0, 100, 0.1, 1), _band(900.0, 100, 0.03, 2)
+    short = replace(high, sides={s: v[:-1] for s, v in high.sides.items()})
+    track = Trajectory.straight((0.0, 0.0, -20.0), 0.0, 0.2, PINGS)
+    with pytest.raises(SonarRasterError, match="30, 29 pings"):
+        write_xtf(tmp_path / "bad.xtf", [low, short], track)
+    assert not list(tmp_path.iterdir())
+
+
+def test_cli_reads_the_pair_asked_for(dual, tmp_path, capsys):
+    path = dual[0]
+    out = tmp_path / "alt.csv"
+    assert main(["track", str(path), "-o", str(out), "-q", "--xtf-frequency", "900"]) == 0
+    assert len(out.read_text().strip().splitlines()) == PINGS + 1
+    code = main(["track", str(path), "-o", str(tmp_path / "x.csv"), "--xtf-frequency", "600"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "445 kHz, 900 kHz" in err[0]
+    assert main(["track", str(path), "-q", "--xtf-frequency", "abc"]) == 2
+    assert "--xtf-frequency 'abc'" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["alt.csv"]
+
+
+def test_pairs_are_matched_by_frequency_not_by_order(tmp_path):
+    """Channels recorded port 900, starboard 445, port 445, starboard 900 kHz: each side is
+    paired with its own frequency's other side (in order they would mix the frequencies)."""
+    low, high = _band(445.0, 300, 0.1, 1), _band(900.0, 500, 0.03, 2)
+
+    def one(band: SonarImage, side: str) -> SonarImage:
+        sonar = replace(band.sonar, sides=(side,))
+        return SonarImage({side: band.sides[side]}, sonar, {})
+
+    track = Trajectory.straight((50.0, 80.0, -20.0), 30.0, 0.2, PINGS)
+    order = [one(high, "port"), one(low, "starboard"), one(low, "port"), one(high, "starboard")]
+    path = write_xtf(tmp_path / "mixed.xtf", order, track)
+    image, _ = read_xtf(path, frequency="high")
+    _same(image, high)
+    assert image.metadata["channels"] == {"port": 0, "starboard": 3}
+    image, _ = read_xtf(path, frequency="low")
+    _same(image, low)
+    assert image.metadata["channels"] == {"port": 2, "starboard": 1}
