@@ -134,6 +134,30 @@ def test_a_dataset_larger_than_the_free_disk_or_memory_is_refused(tmp_path, caps
     assert not out.exists()
 
 
+@pytest.mark.parametrize(
+    ("count", "most"),
+    [("100000", 100000), ("{ integers = [3, 70000] }", 70000), ("{ choice = [1, 90000] }", 90000),
+     ("{ poisson = 60000 }", 61476)],
+)  # fmt: skip
+def test_a_dataset_with_more_objects_than_memory_holds_is_refused_before_drawing(
+    tmp_path, capsys, monkeypatch, count, most
+):
+    """Each object costs a sample about 300 KB (measured: docs/datasets.md); a count that would
+    need more memory than the machine has is one error line before any draw (it used to draw
+    three trial samples of 100 000 objects first, then run out of memory)."""
+    from sonar_raster.scenes.bundled import bundled_dataset_config
+
+    text = bundled_dataset_config("dataset_default").read_text()
+    config = tmp_path / "many.toml"
+    config.write_text(text.replace("count = { integers = [0, 2] }", f"count = {count}", 1))
+    monkeypatch.setattr(_budget, "physical_memory", lambda: 16 << 30)
+    out = tmp_path / "ds"
+    assert main(["dataset", str(config), "-o", str(out), "-n", "2"]) == 2
+    line = one_error_line(capsys.readouterr().err)
+    assert f"up to {most + 7} objects" in line and "objects' count" in line
+    assert not out.exists()
+
+
 def test_check_disk_adds_up_outputs_on_one_file_system(tmp_path, monkeypatch):
     from sonar_raster.errors import SonarRasterError
 
