@@ -152,8 +152,14 @@ class Sonar:
             raise SonarRasterError("range bin is larger than the maximum range: no bins to image")
         if self.n_bins > 1_000_000:
             raise SonarRasterError(f"{self.n_bins} range bins is too many; use a larger range bin")
-        if not self.sides or any(s not in SIDES for s in self.sides):
-            raise SonarRasterError(f"sides must be port, starboard or both, got {self.sides!r}")
+        if (
+            not self.sides
+            or any(s not in SIDES for s in self.sides)
+            or len(set(self.sides)) < len(self.sides)
+        ):
+            raise SonarRasterError(
+                f"sides must be port, starboard or both, each once, got {self.sides!r}"
+            )
         if not math.isfinite(self.tilt):
             raise SonarRasterError("tilt must be a finite angle")
 

@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import sonar_raster as sr
 
@@ -62,3 +63,13 @@ def test_render_returns_labels_from_the_raster_model():
 
 def test_bundled_dataset_config_by_name():
     assert sr.load_dataset_config("dataset_default").name
+
+
+@pytest.mark.parametrize("sides", [("starboard", "starboard"), ("port", "starboard", "port"), ()])
+def test_a_sonar_with_a_side_twice_or_none_is_refused(sides):
+    from sonar_raster.errors import SonarRasterError
+    from sonar_raster.sonar import Sonar
+
+    with pytest.raises(SonarRasterError, match="port, starboard or both, each once"):
+        Sonar(sides=sides)
+    assert Sonar(sides=("starboard", "port")).sides == ("starboard", "port")

@@ -563,8 +563,16 @@ def load_dataset_config(path: str | Path) -> DatasetConfig:
     pings = _positive_int(ds, "pings", 512, f"{where} [dataset]")
     bins = _positive_int(ds, "bins", 1024, f"{where} [dataset]")
     sides = ds.pop("sides", ["starboard"])
-    if not isinstance(sides, list) or not sides or any(s not in SIDES for s in sides):
-        raise SonarRasterError(f"{where} [dataset]: 'sides' must be a list from port, starboard")
+    if (
+        not isinstance(sides, list)
+        or not sides
+        or any(s not in SIDES for s in sides)
+        or len(set(sides)) < len(sides)
+    ):
+        raise SonarRasterError(
+            f"{where} [dataset]: 'sides' must be a list from port, starboard, each once, "
+            f"got {sides!r}"
+        )
     _no_leftovers(ds, f"{where} [dataset]")
     sonar = _table(data, "sonar", where)
     sonar_d = _dists(

@@ -263,6 +263,7 @@ def test_a_failing_sample_is_recorded_and_the_others_complete(tmp_path):
         (("[placement]", "[render]\noversample = 0.0\n[placement]"), "oversample"),
         (('kind = "flat"', 'kind = "flat"\nmicro_relief = "cheese"'), "unknown material"),
         (('kind = "flat"', 'kind = "flat"\nmicro_relief = 0.1'), "sediment name"),
+        (("seed = 5", 'seed = 5\nsides = ["starboard", "starboard"]'), "each once"),
     ],
 )
 def test_config_errors_name_the_key(tmp_path, change, message):
