@@ -120,7 +120,7 @@ def check_dataset_size(config: Any, args: argparse.Namespace) -> None:
     oversample = float(config.render.get("oversample", 2.0))
     along = int(config.render.get("along_samples", 2))
     texels = min(1 << 26, math.ceil(oversample * config.bins * 1.2) * config.pings * along)
-    objects = sum(most_drawn(spec.count) for spec in config.objects)
+    objects = sum(_most_drawn(spec.count) for spec in config.objects)
     per_worker = cells * _WORKER_CELL_BYTES + texels * _TEXEL_BYTES + objects * _OBJECT_BYTES
     workers = max(1, args.workers) if args.scheduler is None else 1
     what_objects = f" and up to {objects} objects" if objects else ""
@@ -136,7 +136,7 @@ def check_dataset_size(config: Any, args: argparse.Namespace) -> None:
               file=sys.stderr)  # fmt: skip
 
 
-def most_drawn(count: Any) -> int:
+def _most_drawn(count: Any) -> int:
     """The most objects an entry's ``count`` draws in one sample.
 
     A Poisson count: its mean plus six standard deviations and six (exceeded with a chance

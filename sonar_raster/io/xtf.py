@@ -510,7 +510,7 @@ def _side_channels(header: Any, path: Path, frequency: float | str | None = None
             continue
         khz = _channel_khz(info)
         for i, (f, members) in enumerate(sets):
-            if side not in members and (f == khz or 0.0 in (f, khz) or k >= n):
+            if side not in members and (_same_khz(f, khz) or 0.0 in (f, khz) or k >= n):
                 members[side] = k
                 sets[i] = (f or khz, members)
                 break
@@ -534,6 +534,11 @@ def _channel_khz(info: Any) -> float:
     """A ChanInfo entry's frequency in kHz (0 where the file does not say)."""
     khz = float(info.Frequency)
     return khz if 0.0 < khz < 1e6 else 0.0
+
+
+def _same_khz(a: float, b: float) -> bool:
+    """Two recorded frequencies of one pair: within 5 % (a header may round them apart)."""
+    return abs(a - b) <= 0.05 * max(a, b)
 
 
 def _chosen_set(
@@ -574,7 +579,7 @@ def _chosen_set(
     if not (math.isfinite(hz) and hz > 0):
         raise SonarRasterError(f"frequency must be a positive number of Hz, got {frequency!r}")
     for f, members in sets:
-        if f > 0 and abs(f * 1e3 - hz) <= 0.05 * hz:
+        if f > 0 and _same_khz(f * 1e3, hz):
             return members
     if len(sets) == 1 and sets[0][0] == 0.0:
         return sets[0][1]  # one set, no frequency recorded: the only choice there is

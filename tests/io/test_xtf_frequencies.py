@@ -118,6 +118,21 @@ def test_pairs_without_recorded_frequencies_go_by_order(dual, tmp_path, caplog):
         read_xtf(blind, frequency="high")
 
 
+def test_a_pair_recorded_a_little_apart_stays_one_pair(dual, tmp_path):
+    """445 / 446 kHz on the two sides of one pair (a header's rounding) is one pair."""
+    path, low, high = dual
+    raw = bytearray(path.read_bytes())
+    header = pyxtf.XTFFileHeader.create_from_buffer(bytes(raw[:1024]))
+    header.ChanInfo[1].Frequency = 446.0
+    raw[:1024] = header.to_bytes()[:1024]
+    near = tmp_path / "near.xtf"
+    near.write_bytes(bytes(raw))
+    image, _ = read_xtf(near, frequency="low")
+    _same(image, low)
+    assert image.metadata["channels"] == {"port": 0, "starboard": 1}
+    _same(read_xtf(near, frequency="high")[0], high)
+
+
 def test_a_single_frequency_file_reads_as_before(tmp_path, caplog):
     band = _band(600.0, 200, 0.05, 3)
     track = Trajectory.straight((0.0, 0.0, -10.0), 0.0, 0.2, PINGS)
