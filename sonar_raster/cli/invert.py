@@ -828,6 +828,7 @@ def _invert_xtf(args: argparse.Namespace) -> int:
     from ..io.commit import commit
 
     out = Path(args.output)
+    frequency = parse_xtf_frequency(args.xtf_frequency)
     samples = None if args.pings else _xtf_samples(Path(args.image))  # a crop: not sized
     if samples:
         check_cost(samples, f"inverting {Path(args.image).name} (samples from its size)",
@@ -836,9 +837,7 @@ def _invert_xtf(args: argparse.Namespace) -> int:
     if args.method == "auto":  # read here to choose, and handed on
         from ..io.xtf import read_xtf
 
-        recording = read_xtf(
-            args.image, parse_pings(args.pings), parse_xtf_frequency(args.xtf_frequency)
-        )
+        recording = read_xtf(args.image, parse_pings(args.pings), frequency)
         sides = _xtf_sides(recording, args.side)
         _choose_method(args, [sides])
         pixels = sum(v.size for v in sides.values())  # the chosen method's estimate, said
@@ -853,7 +852,7 @@ def _invert_xtf(args: argparse.Namespace) -> int:
         progress=not args.quiet,
         method=args.method,
         recording=recording,
-        frequency=parse_xtf_frequency(args.xtf_frequency),
+        frequency=frequency,
         **_line_options(args, BeamProfile),
     )
     image, nav = result.image, result.navigation
