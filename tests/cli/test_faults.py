@@ -236,6 +236,12 @@ def _hidden(folder: Path) -> list[str]:
     return sorted(p.name for p in folder.iterdir() if p.name.startswith("."))
 
 
+def _outputs_started(folder: Path) -> bool:
+    # The outputs' own temporaries; a hidden name alone may be the probe that the writability
+    # check makes and removes at once (seen once in CI: the wait saw it, the check after did not)
+    return any(name.startswith(".out.") for name in _hidden(folder))
+
+
 def _start_streamed_render(folder: Path) -> subprocess.Popen:
     out = ["-o", str(folder / "out.png"), "-o", str(folder / "out.exr")]
     cmd = [sys.executable, "-m", "sonar_raster", "render", SCENE, *out, "-q"]
@@ -246,9 +252,9 @@ def _start_streamed_render(folder: Path) -> subprocess.Popen:
         text=True,
     )
     deadline = time.monotonic() + 300  # a loaded machine takes long to import and build the scene
-    while not _hidden(folder) and proc.poll() is None and time.monotonic() < deadline:
+    while not _outputs_started(folder) and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.05)
-    if proc.poll() is None and _hidden(folder):
+    if proc.poll() is None and _outputs_started(folder):
         return proc
     proc.kill()  # no process left behind; say what it said
     _, err = proc.communicate(timeout=60)
