@@ -9,6 +9,7 @@ from typing import Any
 
 from .._checks import cli_seed
 from ..errors import SonarRasterError
+from .track import add_xtf_frequency, parse_xtf_frequency
 
 
 def _at(text: str) -> tuple[int, float]:
@@ -67,6 +68,7 @@ def add_parser(sub: Any) -> None:
         help="what the file's samples are (auto: intensity in files sonar-raster wrote, "
         "else amplitude)",
     )
+    add_xtf_frequency(p, "; the objects go into that pair, the other stays as recorded")
     p.add_argument(
         "--seabed-reflectivity",
         type=float,
@@ -99,6 +101,7 @@ def run(args: argparse.Namespace) -> int:
         reflectivity = DEFAULT_SEABED_REFLECTIVITY
     if not (math.isfinite(reflectivity) and reflectivity > 0):
         raise SonarRasterError(f"--seabed-reflectivity must be > 0, got {reflectivity}")
+    frequency = parse_xtf_frequency(args.xtf_frequency)
     source = Path(args.recording)
     paths = output_paths(args.output)
     for path in paths.values():
@@ -106,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
         if path.resolve() == source.resolve():
             raise SonarRasterError(f"output {path} would overwrite the recording; choose another")
     objects = args.objects or ["box"]
-    rec = read_recording(source, samples=args.samples)
+    rec = read_recording(source, samples=args.samples, frequency=frequency)
     from ..rendering.gl.raster import RasterRenderer
 
     with RasterRenderer(args.gl) as renderer:

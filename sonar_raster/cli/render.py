@@ -19,6 +19,7 @@ from .effects_options import (
     effects_from_args,
     ideal_requested,
 )
+from .track import add_xtf_frequency, parse_xtf_frequency
 
 _SIDE_CHOICES = {"port": ("port",), "starboard": ("starboard",), "both": ("port", "starboard")}
 _OUTPUT_SUFFIXES = (".png", ".exr", ".xtf")
@@ -251,6 +252,7 @@ def _add_sonar_options(parser: argparse.ArgumentParser) -> None:
         "(the file's, else its bottom track), moved so its middle ping lies over the middle "
         "of the scene's own track (a bare model: passed at mid-swath to starboard there)",
     )
+    add_xtf_frequency(group, " of --track's file (its bottom track, where it has no altitude)")
 
 
 def _add_placement_options(parser: argparse.ArgumentParser) -> None:
@@ -316,23 +318,30 @@ def load_setup(args: argparse.Namespace) -> Any:
         heading_deg=args.heading,
         ping_spacing=args.ping_spacing,
         speed=args.speed,
-        track=None if args.track is None else _recorded_track(args.track),
+        track=_recorded_track(args.track, args.xtf_frequency),
         placement=Placement(args.up, args.units, args.scale, args.position),
         micro_relief=False if args.no_micro_relief or ideal_requested(args) else None,
     )
     return load_scene(args.scene, overrides)
 
 
-def _recorded_track(path: str) -> Any:
+def _recorded_track(path: str | None, xtf_frequency: str | None) -> Any:
     """A recording's track for ``--track``: altitude from the file, else its bottom track."""
     import numpy as np
 
     from ..io.xtf import read_xtf_track
     from ..scenes.description import RecordedTrack
 
+    if path is None:
+        if xtf_frequency is not None:
+            raise SonarRasterError(
+                "--xtf-frequency chooses the channels of --track's file; give --track"
+            )
+        return None
+    frequency = parse_xtf_frequency(xtf_frequency)
     if Path(path).suffix.lower() != ".xtf":
         raise SonarRasterError(f"--track {path}: give a recording (.xtf)")
-    traj, altitude, image = read_xtf_track(path)
+    traj, altitude, image = read_xtf_track(path, frequency=frequency)
     known = np.isfinite(altitude) & (altitude > 0)
     if not known.all():
         from ..inversion.bottom import track_bottom

@@ -48,12 +48,13 @@ def parse_xtf_frequency(text: str | None) -> float | str | None:
     return khz * 1e3
 
 
-def add_xtf_frequency(parser: Any) -> None:
+def add_xtf_frequency(parser: Any, more: str = "") -> None:
     """Add ``--xtf-frequency`` (which pair of a dual-frequency file's channels to read)."""
     parser.add_argument(
         "--xtf-frequency",
         metavar="F",
-        help="XTF input with several frequencies: low, high or kHz (default: the first pair)",
+        help="XTF input with several frequencies: low, high or kHz (default: the first pair)"
+        + more,
     )
 
 

@@ -88,7 +88,7 @@ def _write_xtf(tmp: Path, ins: Insertion) -> None:
         raise SonarRasterError("the recording has no ping indices: it was not read from XTF")
     samples = ins.samples()
     new = {int(indices[r]): {s: samples[s][r] for s in samples} for r in ins.rows.tolist()}
-    patch_xtf(ins.recording.source, tmp, new)
+    patch_xtf(ins.recording.source, tmp, new, ins.recording.frequency)
 
 
 def insertion_jobs(

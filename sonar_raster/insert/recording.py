@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -54,6 +54,9 @@ class Recording:
         True when the stored samples are amplitudes (intensity = sample²).
     source : str
         Where it came from (a path, or "image").
+    frequency : float or {"low", "high"}, optional
+        Of a dual-frequency XTF source, the channels read (``read_xtf``'s ``frequency``); the
+        same pair is the one rewritten. None: the file's first pair.
     full_scale : dict of str to float
         Per side, the sample value the recorder saturates at: its largest sample when at
         least :data:`SATURATED_FRACTION` of the samples sit there; absent when not saturated.
@@ -66,6 +69,7 @@ class Recording:
     valid: np.ndarray
     amplitude: bool
     source: str = "image"
+    frequency: float | str | None = None
     full_scale: dict[str, float] = field(default_factory=dict)
 
     @property
@@ -200,7 +204,11 @@ def recording_from_image(
 
 
 def read_recording(
-    path: str | os.PathLike, *, samples: str = "auto", pings: slice | None = None
+    path: str | os.PathLike,
+    *,
+    samples: str = "auto",
+    pings: slice | None = None,
+    frequency: float | str | None = None,
 ) -> Recording:
     """Read an XTF recording, its track and its bottom track.
 
@@ -212,6 +220,9 @@ def read_recording(
         What the samples are; "auto": intensities in files this project wrote, else amplitudes.
     pings : slice, optional
         Which pings to read (by index among the file's side-scan pings).
+    frequency : float or {"low", "high"}, optional
+        A dual-frequency file's channels (Hz, or "low" / "high"; ``read_xtf``'s); the objects
+        go into that pair only, the other stays as recorded. None: the first pair.
 
     Returns
     -------
@@ -228,10 +239,11 @@ def read_recording(
     p = Path(path)
     if p.suffix.lower() != ".xtf":
         raise SonarRasterError(f"{p}: give a side-scan recording (.xtf)")
-    trajectory, _, image = read_xtf_track(p, pings)
+    trajectory, _, image = read_xtf_track(p, pings, frequency)
     rec = recording_from_image(
         image, trajectory, amplitude=_amplitude(samples, image), source=str(p)
     )
+    rec = replace(rec, frequency=frequency)
     if not math.isfinite(float(np.max(rec.altitude))):
         raise SonarRasterError(f"{p} has no bottom track; objects cannot be stood on its seabed")
     return rec

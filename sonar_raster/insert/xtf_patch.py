@@ -17,6 +17,8 @@ from __future__ import annotations
 import ctypes
 import logging
 import shutil
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -107,6 +109,7 @@ def patch_xtf(
     src: str | Path,
     dst: str | Path,
     samples: dict[int, dict[str, np.ndarray]],
+    frequency: float | str | None = None,
 ) -> int:
     """Copy ``src`` to ``dst`` with the samples of some pings replaced.
 
@@ -119,6 +122,9 @@ def patch_xtf(
     samples : dict of int to dict of str to ndarray
         Ping index among the file's side-scan pings (``image.metadata["ping_indices"]``) to
         the new values per side, from range 0 outward, as :func:`read_xtf` returns them.
+    frequency : float or {"low", "high"}, optional
+        A dual-frequency file's pair to rewrite (``read_xtf``'s ``frequency``; the one the
+        samples were read from); the other pair is copied as recorded. None: the first pair.
 
     Returns
     -------
@@ -131,7 +137,7 @@ def patch_xtf(
         When the copy, read back, does not hold the new samples (a file this walk does not
         understand); ``dst`` is then left for the caller to remove.
     """
-    with XtfReader(src) as reader:
+    with _quiet_reader(), XtfReader(src, frequency) as reader:
         data = bytearray(Path(src).read_bytes())
         index, clipped = 0, 0
         stored: dict[int, dict[str, np.ndarray]] = {}
@@ -145,19 +151,28 @@ def patch_xtf(
             index += int(is_ping)
     with open(dst, "wb") as fh:
         fh.write(data)
-    _verify(Path(src), Path(dst), samples, stored)
+    _verify(Path(src), Path(dst), samples, stored, frequency)
     return clipped
 
 
-def _verify(src: Path, dst: Path, samples: dict, stored: dict) -> None:
-    """Read ``dst`` back: each patched ping must hold exactly the values encoded into it."""
+@contextmanager
+def _quiet_reader() -> Iterator[None]:
+    """The XTF reader's warnings off: what it has to say was said when the source was read."""
     reader_log = logging.getLogger(read_xtf.__module__)
     level = reader_log.level
-    reader_log.setLevel(logging.ERROR)  # what it skips was said when the source was read
+    reader_log.setLevel(logging.ERROR)
     try:
-        image, _ = read_xtf(dst)
+        yield
     finally:
         reader_log.setLevel(level)
+
+
+def _verify(
+    src: Path, dst: Path, samples: dict, stored: dict, frequency: float | str | None
+) -> None:
+    """Read ``dst`` back: each patched ping must hold exactly the values encoded into it."""
+    with _quiet_reader():
+        image, _ = read_xtf(dst, frequency=frequency)
     rows = {int(k): r for r, k in enumerate(image.metadata["ping_indices"])}
     for index, sides in samples.items():
         for side in sides:

@@ -556,8 +556,8 @@ def _chosen_set(
             f, members = sets[0]
             what = f"{f:g} kHz" if f > 0 else f"ChanInfo {sorted(members.values())}"
             log.warning(
-                "%s: side-scan channels at %s; reading %s (track and invert choose with "
-                "--xtf-frequency low/high/kHz; Python: read_xtf(frequency=...))",
+                "%s: side-scan channels at %s; reading %s (choose with --xtf-frequency "
+                "low/high/kHz; Python: read_xtf(frequency=...))",
                 path, names, what,
             )  # fmt: skip
         return sets[0][1]

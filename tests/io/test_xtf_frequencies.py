@@ -21,7 +21,7 @@ pyxtf = pytest.importorskip("pyxtf")
 PINGS = 30
 
 
-def _band(khz: float, bins: int, range_bin: float, seed: int) -> SonarImage:
+def _band(khz: float, bins: int, range_bin: float, seed: int, pings: int = PINGS) -> SonarImage:
     """Two sides of distinct random intensities (no two bands share a value), a seabed from
     12 m of slant range on."""
     sonar = Sonar(
@@ -31,7 +31,7 @@ def _band(khz: float, bins: int, range_bin: float, seed: int) -> SonarImage:
     rng = np.random.default_rng(seed)
     water = (np.arange(bins) + 0.5) * range_bin < 12.0
     sides = {
-        s: np.where(water, 0.0, rng.exponential(1.0 + seed, (PINGS, bins))).astype(np.float32)
+        s: np.where(water, 0.0, rng.exponential(1.0 + seed, (pings, bins))).astype(np.float32)
         for s in sonar.sides
     }
     return SonarImage(sides, sonar, {})
@@ -185,3 +185,46 @@ def test_pairs_are_matched_by_frequency_not_by_order(tmp_path):
     image, _ = read_xtf(path, frequency="low")
     _same(image, low)
     assert image.metadata["channels"] == {"port": 2, "starboard": 1}
+
+
+@pytest.fixture(scope="module")
+def dual_line(tmp_path_factory):
+    """A longer 445 / 900 kHz line with a seabed at 12 m of slant range, to insert into."""
+    low, high = (
+        _band(k, n, b, s, pings=120) for k, n, b, s in ((445, 300, 0.1, 1), (900, 500, 0.03, 2))
+    )
+    track = Trajectory.straight((0.0, 0.0, -12.0), 0.0, 0.2, 120)
+    path = write_xtf(tmp_path_factory.mktemp("line") / "dual.xtf", [low, high], track)
+    return path, low, high
+
+
+@pytest.mark.parametrize("choice", [None, "high"])
+def test_insert_changes_the_pair_asked_for_and_keeps_the_other(dual_line, tmp_path, choice):
+    path, low, high = dual_line
+    argv = ["insert", str(path), "-o", str(tmp_path / "out"), "-q", "--object", "box",
+            "--at", "60,8"]  # fmt: skip
+    assert main(argv + (["--xtf-frequency", choice] if choice else [])) == 0
+    changed, kept = (high, low) if choice == "high" else (low, high)
+    with_objects = {}
+    for band in (low, high):
+        image, _ = read_xtf(tmp_path / "out.xtf", frequency=band.sonar.frequency_hz)
+        with_objects[band is changed] = image
+    _same(with_objects[False], kept)
+    image = with_objects[True]
+    differs = np.abs(image.sides["starboard"] - changed.sides["starboard"]).max(axis=1) > 0
+    assert 0 < differs.sum() < 120 and differs[60]  # the box's pings, from the changed pair
+    np.testing.assert_array_equal(image.sides["port"], changed.sides["port"])
+
+
+def test_render_reads_the_track_of_the_pair_asked_for(dual_line, tmp_path, capsys):
+    path = str(dual_line[0])
+    out = str(tmp_path / "x.png")
+    code = main(["render", "default", "-o", out, "--xtf-frequency", "high"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "give --track" in err[0]
+    code = main(["render", "default", "-o", out, "--track", path, "--xtf-frequency", "600"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "445 kHz, 900 kHz" in err[0]
+    assert list(tmp_path.iterdir()) == []
+    argv = ["render", "default", "-o", out, "--track", path, "--xtf-frequency", "high", "-q"]
+    assert main(argv) == 0 and capsys.readouterr().err == ""  # no word on the other pair
