@@ -340,12 +340,12 @@ def _report(argv: list[str] | None) -> int:
     t0 = time.perf_counter()
     recording = None
     if args.method == "auto":  # as sonar-raster invert chooses, the file read once
-        from sonar_raster.cli.invert import _xtf_sides
         from sonar_raster.inversion.method import choose_method
         from sonar_raster.io.xtf import read_xtf
 
         recording = read_xtf(args.xtf, parse_pings(args.pings))
-        choice = choose_method([_xtf_sides(recording, None)])
+        sides = recording[0].sides  # amplitudes: their squares, as invert_xtf takes them
+        choice = choose_method([{s: np.square(v.astype(np.float64)) for s, v in sides.items()}])
         args.method = choice.method
         print(choice.reason, flush=True)
     options = {"max_iter": args.max_iter}
