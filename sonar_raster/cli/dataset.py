@@ -89,6 +89,12 @@ _TEXEL_BYTES = 24
 #: 270-340 KB measured with 1000 cylinders (192 triangles) or tyres (1600) per sample of
 #: 512 pings x 1024 bins, no dependence on the triangles seen.
 _OBJECT_BYTES = 350e3
+#: A worker's own peak before its image: imports, GL context, a small scene and the effects
+#: (350 MB measured per worker with 16 pings x 64 bins and no micro-relief).
+_WORKER_BASE_BYTES = 350e6
+#: Peak bytes per node of a seabed's micro-relief grid (its mesh, normals and GL buffers):
+#: 280 MB over 787 k nodes measured on a ``dataset_default`` sample.
+_RELIEF_NODE_BYTES = 400.0
 
 
 def check_dataset_size(config: Any, args: argparse.Namespace) -> None:
@@ -121,7 +127,13 @@ def check_dataset_size(config: Any, args: argparse.Namespace) -> None:
     along = int(config.render.get("along_samples", 2))
     texels = min(1 << 26, math.ceil(oversample * config.bins * 1.2) * config.pings * along)
     objects = sum(_most_drawn(spec.count) for spec in config.objects)
-    per_worker = cells * _WORKER_CELL_BYTES + texels * _TEXEL_BYTES + objects * _OBJECT_BYTES
+    per_worker = (
+        _WORKER_BASE_BYTES
+        + cells * _WORKER_CELL_BYTES
+        + texels * _TEXEL_BYTES
+        + objects * _OBJECT_BYTES
+        + _most_relief_nodes(config) * _RELIEF_NODE_BYTES
+    )
     workers = max(1, args.workers) if args.scheduler is None else 1
     what_objects = f" and up to {objects} objects" if objects else ""
     lower = "lower --workers, or the config's pings or bins"
@@ -134,6 +146,28 @@ def check_dataset_size(config: Any, args: argparse.Namespace) -> None:
         print(f"dataset: {what}{what_objects} each: about {size_text(per_sample * count)} on "
               f"disk at most, {size_text(per_worker)} of memory per worker",
               file=sys.stderr)  # fmt: skip
+
+
+def _most_relief_nodes(config: Any) -> float:
+    """The most nodes a sample's seabed micro-relief grid can have (0 when no seabed has one).
+
+    The grid covers the swath's ground range and the track, each with a margin, at
+    ``MICRO_RESOLUTION_BINS`` range bins: most at the shortest range and the widest ping spacing
+    the config draws, and never past ``MICRO_MAX_NODES``.
+    """
+    from ..dataset.scene import _SEABED_MARGIN
+    from ..scenes.seabed import MICRO_MAX_NODES, MICRO_RESOLUTION_BINS
+
+    if not any(spec.micro_relief is not None for spec in config.seabeds):
+        return 0.0
+    shortest = config.sonar["max_range"].bounds[0]
+    widest = config.track["spacing"].bounds[1]
+    if not (math.isfinite(shortest) and shortest > 0 and math.isfinite(widest)):
+        return float(MICRO_MAX_NODES)
+    cell = MICRO_RESOLUTION_BINS * shortest / config.bins
+    across = len(config.sides) * (shortest + _SEABED_MARGIN) / cell
+    along = ((config.pings - 1) * widest + 2.0 * _SEABED_MARGIN) / cell
+    return min(across * along, float(MICRO_MAX_NODES))
 
 
 def _most_drawn(count: Any) -> int:

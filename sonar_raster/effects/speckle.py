@@ -120,8 +120,12 @@ def gamma_texture(
 #: ``DownsampleMethod``: 2 = MAX, 4 = RMS, the mean of the intensity).
 DOWNSAMPLE_KINDS = ("off", "max", "mean")
 _BLOCK_BINS = 128  # recorded bins per block of the sub-sampled field (bounds the memory)
-#: Most complex sub-samples drawn at once by the recorder's speckle (256 MiB of complex128).
-_FINE_BUDGET = 1 << 24
+#: Most sub-samples drawn at once by the recorder's speckle: about 100 MB at the peak (the
+#: noise, its filtered copy and the intensity; 2**24 took 0.8 GB).
+_FINE_BUDGET = 1 << 21
+#: Sub-samples of the Monte Carlo that sets the recorded speckle's mean (~0.2 %), drawn in
+#: blocks of ``_FINE_BUDGET``.
+_MEAN_SAMPLES = 1 << 24
 
 
 def _range_taps(sigma: float) -> np.ndarray:
@@ -208,10 +212,16 @@ def downsampled_mean(
         return 1.0
     entropy = np.random.SeedSequence(20261124)
     # 64 x 4096 recorded values; fewer columns when n is large (a coarse bin), so the draw stays
-    # near 2**24 sub-samples (the maximum of many sub-samples varies little)
-    cols = max(16, min(4096, _FINE_BUDGET // (64 * n)))
-    sample = _fine_field(entropy, 64, (0, cols), n, np.zeros(cols), sigma_fine, k_shape, looks)
-    return float(_reduce(sample, n, how).mean())
+    # near 2**24 sub-samples (the maximum of many sub-samples varies little). Each column has
+    # its own stream, so drawing them in blocks gives the same values.
+    cols = max(16, min(4096, _MEAN_SAMPLES // (64 * n)))
+    block = max(1, _FINE_BUDGET // (64 * n))
+    values = np.empty((64, cols))
+    for lo in range(0, cols, block):
+        hi = min(cols, lo + block)
+        sample = _fine_field(entropy, 64, (lo, hi), n, np.zeros(cols), sigma_fine, k_shape, looks)
+        values[:, lo:hi] = _reduce(sample, n, how)
+    return float(values.mean())
 
 
 def recorded_speckle_field(

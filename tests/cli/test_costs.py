@@ -240,3 +240,33 @@ def test_an_xtf_file_says_the_estimate_of_the_method_it_chose_once(tmp_path, cap
         f"inverting scotsman-iver2.xtf: about {pixels:.2g} pixels; estimated "
         f"{round(pixels * 2e-3 / 60)} min, {memory:.1f} GiB of memory"
     ]
+
+
+@pytest.mark.parametrize(
+    ("edit", "workers"),
+    [
+        ({"pings = 512": "pings = 16", "bins = 1024": "bins = 64"}, 48),  # each worker's own
+        ({}, 20),  # the sand's micro-relief grid: up to 0.95 M nodes a sample
+    ],
+)
+def test_many_workers_are_refused_by_what_each_holds_before_its_image(
+    tmp_path, capsys, monkeypatch, edit, workers
+):
+    """A worker holds about 350 MB before its image (imports, GL context, effects) and a
+    seabed's micro-relief mesh about 400 B per node (measured: docs/performance.md); the
+    estimate once counted the image alone (13 MiB a worker for 16 pings x 64 bins, 57 MiB for
+    the default config), so 48 or 20 workers were let start on a 16 GiB machine."""
+    from sonar_raster.scenes.bundled import bundled_dataset_config
+
+    text = bundled_dataset_config("dataset_default").read_text()
+    for old, new in edit.items():
+        text = text.replace(old, new, 1)
+    config = tmp_path / "workers.toml"
+    config.write_text(text)
+    monkeypatch.setattr(_budget, "physical_memory", lambda: 16 << 30)
+    out = tmp_path / "ds"
+    argv = ["dataset", str(config), "-o", str(out), "-n", "2", "--workers", str(workers)]
+    assert main(argv) == 2
+    line = one_error_line(capsys.readouterr().err)
+    assert f"{workers} workers rendering" in line and "--workers" in line
+    assert not out.exists()
