@@ -155,7 +155,7 @@ def _most_relief_nodes(config: Any) -> float:
     ``MICRO_RESOLUTION_BINS`` range bins: most at the shortest range and the widest ping spacing
     the config draws, and never past ``MICRO_MAX_NODES``.
     """
-    from ..dataset.scene import _SEABED_MARGIN
+    from ..dataset.scene import SEABED_MARGIN
     from ..scenes.seabed import MICRO_MAX_NODES, MICRO_RESOLUTION_BINS
 
     if not any(spec.micro_relief is not None for spec in config.seabeds):
@@ -165,8 +165,8 @@ def _most_relief_nodes(config: Any) -> float:
     if not (math.isfinite(shortest) and shortest > 0 and math.isfinite(widest)):
         return float(MICRO_MAX_NODES)
     cell = MICRO_RESOLUTION_BINS * shortest / config.bins
-    across = len(config.sides) * (shortest + _SEABED_MARGIN) / cell
-    along = ((config.pings - 1) * widest + 2.0 * _SEABED_MARGIN) / cell
+    across = len(config.sides) * (shortest + SEABED_MARGIN) / cell
+    along = ((config.pings - 1) * widest + 2.0 * SEABED_MARGIN) / cell
     return min(across * along, float(MICRO_MAX_NODES))
 
 

@@ -23,7 +23,8 @@ from ..sonar import BeamPattern, Sonar
 from ..trajectory import Trajectory
 from .config import REACH_PAST_ALTITUDE, DatasetConfig, ObjectSpec, allowed, rule
 
-_SEABED_MARGIN = 2.0  # metres of seabed beyond the swath and the track ends
+#: Metres of seabed beyond the swath and the track ends.
+SEABED_MARGIN = 2.0
 _PLACEMENT_TRIES = 20
 _MERGE_GAP = 48  # pings
 _MESH_CACHE: dict[tuple[str, float], list[MeshPart]] = {}
@@ -229,7 +230,7 @@ def draw_sample(config: DatasetConfig, seed: int, index: int) -> SampleScene:
     )
     length = (config.pings - 1) * spacing
     ground_max = math.sqrt(max_range**2 - altitude**2)
-    m = _SEABED_MARGIN
+    m = SEABED_MARGIN
     x0 = -ground_max - m if "port" in config.sides else -m
     x1 = ground_max + m if "starboard" in config.sides else m
     extent = (x0, x1, -0.5 * length - m, 0.5 * length + m)
