@@ -66,7 +66,8 @@ def add_effect_options(parser: argparse.ArgumentParser) -> None:
         metavar="NAME",
         help="sensor preset: its sonar (frequency, beams, tilt, range, bins) and every effect it "
         "has (see 'sonar-raster sensors'); default: the scene's [sonar] preset, else the "
-        f"effects of {_default_sensor()} on the scene's sonar",
+        f"effects of {_default_sensor()} on the scene's sonar. render: several comma-separated "
+        "(e.g. a dual-frequency sonar's two) render one image each over one track, one .xtf",
     )
     add(
         "--ideal",

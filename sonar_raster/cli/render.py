@@ -389,6 +389,9 @@ def placement_lines(setup: Any) -> list[str]:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``sonar-raster render``."""
+    sensors = _sensor_list(args)
+    if len(sensors) > 1:
+        return _run_sensors(args, sensors)
     outputs = _check_outputs(args.output)
     _check_long_track(args, outputs)  # a long --pings is sized before its track is made
     setup = load_setup(args)
@@ -419,6 +422,111 @@ def run(args: argparse.Namespace) -> int:
         for path in dict.fromkeys(written):
             print(f"wrote {path}")
     return 0
+
+
+def _sensor_list(args: argparse.Namespace) -> list[str | None]:
+    """``--sensor``'s names: one (or None), or several comma-separated (a dual-frequency set)."""
+    text = getattr(args, "sensor", None)
+    if text is None or "," not in text:
+        return [text]
+    names = [name.strip() for name in text.split(",")]
+    if "" in names or len(set(names)) < len(names) or "ideal" in names:
+        raise SonarRasterError(
+            f"--sensor {text!r}: give different presets once each, comma-separated, e.g. "
+            "klein-3900-445,klein-3900-900"
+        )
+    return names
+
+
+def _run_sensors(args: argparse.Namespace, sensors: list[str | None]) -> int:
+    """Several presets over one track: one image each, their channels in one XTF.
+
+    A PNG or EXR output is written once per preset, its name before the suffix
+    (``out.png`` → ``out.klein-3900-445.png``). The first preset's effects take ``--seed``,
+    the others seeds spawned from it, so the first image equals a render of that preset alone.
+    """
+    import copy
+
+    import numpy as np
+
+    from ..effects.presets import preset
+
+    for option in ("frequency", "tilt", "beamwidth"):
+        if getattr(args, option, None) is not None:
+            raise SonarRasterError(
+                f"--{option} with several --sensor presets: each has its own; render them one "
+                "at a time to change it"
+            )
+    if args.chunk_pings is not None or getattr(args, "ideal", False):
+        what = "--chunk-pings" if args.chunk_pings is not None else "--ideal"
+        raise SonarRasterError(f"{what} takes one --sensor preset at a time")
+    for name in sensors:
+        preset(str(name))  # an unknown name is one line before anything renders
+    outputs = _check_outputs(args.output)
+    _check_long_track(args, outputs)
+    seeds: list[int | None] = [args.seed] * len(sensors)
+    if args.seed is not None:
+        children = np.random.SeedSequence(args.seed).spawn(len(sensors))
+        seeds = [args.seed] + [int(c.generate_state(1)[0]) for c in children[1:]]
+    runs = []
+    for name, seed in zip(sensors, seeds, strict=True):
+        one = copy.copy(args)
+        one.sensor, one.seed = name, seed
+        setup = apply_sensor_option(one, load_setup(one))
+        _check_in_range(setup)
+        effects = effects_from_args(one, setup.effects)
+        if _streamed(one, setup):
+            raise SonarRasterError(
+                f"{name}: the track is too long to hold whole; several --sensor presets write "
+                "one file at the end, so lower --pings"
+            )
+        _check_size(one, setup, False, outputs)
+        runs.append((name, one, setup, effects))
+    if not args.quiet:
+        for line in placement_lines(runs[0][2]):
+            print(line)
+    images = []
+    for name, one, setup, effects in runs:
+        image = _render_image(one, setup)
+        image.metadata.update(_track_metadata(setup))
+        image.metadata.update(setup.notes)
+        if effects is not None:
+            from ..effects.chain import apply_effects
+
+            image = apply_effects(image, effects, seed=one.seed, trajectory=setup.trajectory)
+        _warn_blank(image, effects)
+        images.append(image)
+        if not args.quiet:
+            pings, bins = image.shape
+            print(f"rendered {setup.source} as {name}: {pings} pings x {bins} bins per side")
+    written = _write_sensors(args, runs, images, outputs)
+    if not args.quiet:
+        for path in dict.fromkeys(written):
+            print(f"wrote {path}")
+    return 0
+
+
+def _write_sensors(
+    args: argparse.Namespace, runs: list, images: list, outputs: list[Path]
+) -> list[Path]:
+    """Every preset's outputs in one all-or-nothing commit (see :func:`_run_sensors`)."""
+    from ..io.commit import commit
+    from ..io.images import image_jobs
+
+    jobs: dict[Path, Callable[[Path], None]] = {}
+    for path in outputs:
+        if path.suffix.lower() == ".xtf":
+            jobs[path] = partial(_write_xtf, image=images, setup=runs[0][2])
+            continue
+        for (name, one, each, _), image in zip(runs, images, strict=True):
+            named = path.with_name(f"{path.stem}.{name}{path.suffix}")
+            display = display_from_args(one, each)
+            for final, writer in image_jobs(
+                image, named, bit_depth=args.bits, dynamic_range_db=args.dynamic_range,
+                display=display,
+            ):  # fmt: skip
+                jobs[final] = writer
+    return commit(list(jobs.items()))
 
 
 def _warn_blank(image: Any, effects: Any) -> None:

@@ -228,3 +228,44 @@ def test_render_reads_the_track_of_the_pair_asked_for(dual_line, tmp_path, capsy
     assert list(tmp_path.iterdir()) == []
     argv = ["render", "default", "-o", out, "--track", path, "--xtf-frequency", "high", "-q"]
     assert main(argv) == 0 and capsys.readouterr().err == ""  # no word on the other pair
+
+
+def test_render_writes_two_presets_as_one_dual_frequency_file(tmp_path, capsys):
+    """``--sensor A,B``: one image per preset over one track, their channels in one XTF and a
+    PNG each; the first preset's image is the one a render of it alone makes (same seed)."""
+    dual, alone = tmp_path / "dual", tmp_path / "alone"
+    dual.mkdir()
+    alone.mkdir()
+    common = ["render", "default", "--pings", "30", "--seed", "3", "-q"]
+    argv = [*common, "--sensor", "klein-3900-445,klein-3900-900"]
+    assert main([*argv, "-o", str(dual / "out.xtf"), "-o", str(dual / "out.png")]) == 0
+    assert main([*common, "--sensor", "klein-3900-445", "-o", str(alone / "out.xtf")]) == 0
+    names = sorted(p.name for p in dual.iterdir())
+    assert names == sorted(
+        f"out{s}" for s in (".xtf", ".klein-3900-445.png", ".klein-3900-445.json",
+                            ".klein-3900-900.png", ".klein-3900-900.json")
+    )  # fmt: skip
+    low, _ = read_xtf(dual / "out.xtf", frequency="low")
+    high, _ = read_xtf(dual / "out.xtf", frequency="high")
+    single, _ = read_xtf(alone / "out.xtf")
+    assert (low.sonar.frequency_hz, high.sonar.frequency_hz) == (445e3, 900e3)
+    assert low.shape == (30, 4000) and high.shape == (30, 5333)  # each preset's bins
+    _same(low, single)
+    assert not np.array_equal(high.sides["starboard"][:, :100], low.sides["starboard"][:, :100])
+
+
+@pytest.mark.parametrize(
+    ("sensor", "more", "says"),
+    [
+        ("klein-3900-445,klein-3900-445", [], "different presets once each"),
+        ("klein-3900-445,nope", [], "nope"),
+        ("klein-3900-445,klein-3900-900", ["--frequency", "400"], "--frequency with several"),
+        ("klein-3900-445,klein-3900-900", ["--chunk-pings", "8"], "one --sensor preset at a time"),
+    ],
+)
+def test_render_with_presets_it_cannot_combine_is_one_line(tmp_path, capsys, sensor, more, says):
+    argv = ["render", "default", "--pings", "8", "--sensor", sensor, *more]
+    assert main([*argv, "-o", str(tmp_path / "out.xtf")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and says in err[0], err
+    assert list(tmp_path.iterdir()) == []
