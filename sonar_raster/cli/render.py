@@ -404,14 +404,7 @@ def run(args: argparse.Namespace) -> int:
     _check_size(args, setup, _streamed(args, setup), outputs)
     if _streamed(args, setup):
         return _render_survey(args, setup, outputs, effects)
-    image = _render_image(args, setup)
-    image.metadata.update(_track_metadata(setup))
-    image.metadata.update(setup.notes)
-    if effects is not None:  # no effects: the renderer's image is written as is
-        from ..effects.chain import apply_effects
-
-        image = apply_effects(image, effects, seed=args.seed, trajectory=setup.trajectory)
-    _warn_blank(image, effects)
+    image = _rendered(args, setup, effects)
     written = _write(args, setup, image, outputs)
     if not args.quiet:
         pings, bins = image.shape
@@ -422,6 +415,19 @@ def run(args: argparse.Namespace) -> int:
         for path in dict.fromkeys(written):
             print(f"wrote {path}")
     return 0
+
+
+def _rendered(args: argparse.Namespace, setup: Any, effects: Any) -> Any:
+    """The scene's image with its track's metadata, and the effects unless there are none."""
+    image = _render_image(args, setup)
+    image.metadata.update(_track_metadata(setup))
+    image.metadata.update(setup.notes)
+    if effects is not None:  # no effects: the renderer's image is written as is
+        from ..effects.chain import apply_effects
+
+        image = apply_effects(image, effects, seed=args.seed, trajectory=setup.trajectory)
+    _warn_blank(image, effects)
+    return image
 
 
 def _sensor_list(args: argparse.Namespace) -> list[str | None]:
@@ -487,14 +493,7 @@ def _run_sensors(args: argparse.Namespace, sensors: list[str | None]) -> int:
             print(line)
     images = []
     for name, one, setup, effects in runs:
-        image = _render_image(one, setup)
-        image.metadata.update(_track_metadata(setup))
-        image.metadata.update(setup.notes)
-        if effects is not None:
-            from ..effects.chain import apply_effects
-
-            image = apply_effects(image, effects, seed=one.seed, trajectory=setup.trajectory)
-        _warn_blank(image, effects)
+        image = _rendered(one, setup, effects)
         images.append(image)
         if not args.quiet:
             pings, bins = image.shape
