@@ -92,6 +92,9 @@ _OBJECT_BYTES = 350e3
 #: A worker's own peak before its image: imports, GL context, a small scene and the effects
 #: (350 MB measured per worker with 16 pings x 64 bins and no micro-relief).
 _WORKER_BASE_BYTES = 350e6
+#: The main process beside its pool of workers (its trial draws, the results' queue): 295 MB
+#: measured with two workers on ``dataset_default``. With one worker it is the worker.
+_MAIN_BYTES = 300e6
 #: Peak bytes per node of a seabed's micro-relief grid (its mesh, normals and GL buffers):
 #: 280 MB over 787 k nodes measured on a ``dataset_default`` sample.
 _RELIEF_NODE_BYTES = 400.0
@@ -139,12 +142,14 @@ def check_dataset_size(config: Any, args: argparse.Namespace) -> None:
     lower = "lower --workers, or the config's pings or bins"
     if objects * _OBJECT_BYTES > 0.5 * per_worker:
         lower = "lower the objects' count in the config, or --workers"
-    check_memory(per_worker * workers,
+    main = _MAIN_BYTES if workers > 1 else 0.0
+    check_memory(per_worker * workers + main,
                  f"{workers} workers rendering {what.split(' of ')[1]}{what_objects}",
                  f"{lower} (or add --force)", force=args.force)  # fmt: skip
     if not args.quiet:
+        beside = f" and {size_text(main)} beside them" if main else ""
         print(f"dataset: {what}{what_objects} each: about {size_text(per_sample * count)} on "
-              f"disk at most, {size_text(per_worker)} of memory per worker",
+              f"disk at most, {size_text(per_worker)} of memory per worker{beside}",
               file=sys.stderr)  # fmt: skip
 
 

@@ -270,3 +270,25 @@ def test_many_workers_are_refused_by_what_each_holds_before_its_image(
     line = one_error_line(capsys.readouterr().err)
     assert f"{workers} workers rendering" in line and "--workers" in line
     assert not out.exists()
+
+
+def test_the_main_process_beside_its_workers_is_counted(tmp_path, monkeypatch):
+    """With a pool the main process holds its own memory beside the workers' (295 MB measured
+    beside two); with one worker it is the worker."""
+    from sonar_raster.errors import SonarRasterError
+
+    needs = {}
+
+    def record(need, what, lower, *, force=False):
+        needs[what.split(" workers")[0]] = need
+        raise SonarRasterError("stop here")
+
+    monkeypatch.setattr(_budget, "check_memory", record)
+    for workers in ("1", "2", "3"):
+        out = tmp_path / f"ds{workers}"
+        assert (
+            main(["dataset", "dataset_default", "-o", str(out), "-n", "2", "--workers", workers])
+            == 2
+        )
+    assert needs["2"] - 2 * needs["1"] == pytest.approx(needs["3"] - 3 * needs["1"])
+    assert needs["2"] - 2 * needs["1"] > 250e6
