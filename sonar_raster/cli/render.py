@@ -405,7 +405,7 @@ def run(args: argparse.Namespace) -> int:
     if _streamed(args, setup):
         return _render_survey(args, setup, outputs, effects)
     image = _rendered(args, setup, effects)
-    written = _write(args, setup, image, outputs)
+    written = _write(args, [(None, args, setup, image)], outputs)
     if not args.quiet:
         pings, bins = image.shape
         print(
@@ -455,8 +455,6 @@ def _run_sensors(args: argparse.Namespace, sensors: list[str | None]) -> int:
 
     import numpy as np
 
-    from ..effects.presets import preset
-
     for option in ("frequency", "tilt", "beamwidth"):
         if getattr(args, option, None) is not None:
             raise SonarRasterError(
@@ -466,8 +464,6 @@ def _run_sensors(args: argparse.Namespace, sensors: list[str | None]) -> int:
     if args.chunk_pings is not None or getattr(args, "ideal", False):
         what = "--chunk-pings" if args.chunk_pings is not None else "--ideal"
         raise SonarRasterError(f"{what} takes one --sensor preset at a time")
-    for name in sensors:
-        preset(str(name))  # an unknown name is one line before anything renders
     outputs = _check_outputs(args.output)
     _check_long_track(args, outputs)
     seeds: list[int | None] = [args.seed] * len(sensors)
@@ -491,41 +487,18 @@ def _run_sensors(args: argparse.Namespace, sensors: list[str | None]) -> int:
     if not args.quiet:
         for line in placement_lines(runs[0][2]):
             print(line)
-    images = []
+    renders = []
     for name, one, setup, effects in runs:
         image = _rendered(one, setup, effects)
-        images.append(image)
+        renders.append((name, one, setup, image))
         if not args.quiet:
             pings, bins = image.shape
             print(f"rendered {setup.source} as {name}: {pings} pings x {bins} bins per side")
-    written = _write_sensors(args, runs, images, outputs)
+    written = _write(args, renders, outputs)
     if not args.quiet:
         for path in dict.fromkeys(written):
             print(f"wrote {path}")
     return 0
-
-
-def _write_sensors(
-    args: argparse.Namespace, runs: list, images: list, outputs: list[Path]
-) -> list[Path]:
-    """Every preset's outputs in one all-or-nothing commit (see :func:`_run_sensors`)."""
-    from ..io.commit import commit
-    from ..io.images import image_jobs
-
-    jobs: dict[Path, Callable[[Path], None]] = {}
-    for path in outputs:
-        if path.suffix.lower() == ".xtf":
-            jobs[path] = partial(_write_xtf, image=images, setup=runs[0][2])
-            continue
-        for (name, one, each, _), image in zip(runs, images, strict=True):
-            named = path.with_name(f"{path.stem}.{name}{path.suffix}")
-            display = display_from_args(one, each)
-            for final, writer in image_jobs(
-                image, named, bit_depth=args.bits, dynamic_range_db=args.dynamic_range,
-                display=display,
-            ):  # fmt: skip
-                jobs[final] = writer
-    return commit(list(jobs.items()))
 
 
 def _warn_blank(image: Any, effects: Any) -> None:
@@ -841,21 +814,30 @@ def _render_image(args: argparse.Namespace, setup: Any) -> Any:
     )
 
 
-def _write(args: argparse.Namespace, setup: Any, image: Any, outputs: list[Path]) -> list[Path]:
-    """Write every output in one all-or-nothing commit: all files replaced, or none."""
+def _write(args: argparse.Namespace, renders: list[tuple], outputs: list[Path]) -> list[Path]:
+    """Write every output in one all-or-nothing commit: all files replaced, or none.
+
+    ``renders`` are ``(preset, args, setup, image)``: one with preset None, or several presets
+    (:func:`_run_sensors`), whose images share an XTF and get a PNG or EXR each, named
+    ``out.PRESET.png``.
+    """
     from ..io.commit import commit
     from ..io.images import image_jobs
 
     jobs: dict[Path, Callable[[Path], None]] = {}  # a sidecar named twice: the last one wins
     for path in outputs:
         if path.suffix.lower() == ".xtf":
-            jobs[path] = partial(_write_xtf, image=image, setup=setup)
+            images = [image for *_, image in renders]
+            jobs[path] = partial(_write_xtf, image=images, setup=renders[0][2])
             continue
-        display = display_from_args(args, setup)  # issue 16: level, palette, geometry
-        for final, writer in image_jobs(
-            image, path, bit_depth=args.bits, dynamic_range_db=args.dynamic_range, display=display
-        ):
-            jobs[final] = writer
+        for name, one, setup, image in renders:
+            named = path if name is None else path.with_name(f"{path.stem}.{name}{path.suffix}")
+            display = display_from_args(one, setup)  # issue 16: level, palette, geometry
+            for final, writer in image_jobs(
+                image, named, bit_depth=args.bits, dynamic_range_db=args.dynamic_range,
+                display=display,
+            ):  # fmt: skip
+                jobs[final] = writer
     return commit(list(jobs.items()))
 
 
