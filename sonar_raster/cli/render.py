@@ -403,7 +403,7 @@ def run(args: argparse.Namespace) -> int:
     effects = effects_from_args(args, setup.effects)  # bad options fail before the render
     _check_size(args, setup, _streamed(args, setup), outputs)
     if _streamed(args, setup):
-        return _render_survey(args, setup, outputs, effects)
+        return _render_survey(args, [(None, args, setup, effects)], outputs)
     image = _rendered(args, setup, effects)
     written = _write(args, [(None, args, setup, image)], outputs)
     if not args.quiet:
@@ -461,11 +461,9 @@ def _run_sensors(args: argparse.Namespace, sensors: list[str | None]) -> int:
                 f"--{option} with several --sensor presets: each has its own; render them one "
                 "at a time to change it"
             )
-    if args.chunk_pings is not None or getattr(args, "ideal", False):
-        what = "--chunk-pings" if args.chunk_pings is not None else "--ideal"
-        raise SonarRasterError(f"{what} takes one --sensor preset at a time")
+    if getattr(args, "ideal", False):
+        raise SonarRasterError("--ideal takes one --sensor preset at a time")
     outputs = _check_outputs(args.output)
-    _check_long_track(args, outputs)
     seeds: list[int | None] = [args.seed] * len(sensors)
     if args.seed is not None:
         children = np.random.SeedSequence(args.seed).spawn(len(sensors))
@@ -474,19 +472,18 @@ def _run_sensors(args: argparse.Namespace, sensors: list[str | None]) -> int:
     for name, seed in zip(sensors, seeds, strict=True):
         one = copy.copy(args)
         one.sensor, one.seed = name, seed
+        _check_long_track(one, outputs)  # a long --pings is sized before its track is made
         setup = apply_sensor_option(one, load_setup(one))
         _check_in_range(setup)
-        effects = effects_from_args(one, setup.effects)
-        if _streamed(one, setup):
-            raise SonarRasterError(
-                f"{name}: the track is too long to hold whole; several --sensor presets write "
-                "one file at the end, so lower --pings"
-            )
-        _check_size(one, setup, False, outputs)
-        runs.append((name, one, setup, effects))
+        runs.append((name, one, setup, effects_from_args(one, setup.effects)))
+    streamed = any(_streamed(one, setup) for _, one, setup, _ in runs)  # one XTF: all or none
+    for _, one, setup, _ in runs:
+        _check_size(one, setup, streamed, outputs)
     if not args.quiet:
         for line in placement_lines(runs[0][2]):
             print(line)
+    if streamed:
+        return _render_survey(args, runs, outputs)
     renders = []
     for name, one, setup, effects in runs:
         image = _rendered(one, setup, effects)
@@ -831,7 +828,7 @@ def _write(args: argparse.Namespace, renders: list[tuple], outputs: list[Path]) 
             jobs[path] = partial(_write_xtf, image=images, setup=renders[0][2])
             continue
         for name, one, setup, image in renders:
-            named = path if name is None else path.with_name(f"{path.stem}.{name}{path.suffix}")
+            named = path if name is None else _named([path], name)[0]
             display = display_from_args(one, setup)  # issue 16: level, palette, geometry
             for final, writer in image_jobs(
                 image, named, bit_depth=args.bits, dynamic_range_db=args.dynamic_range,
@@ -872,32 +869,50 @@ def _track_metadata(setup: Any) -> dict[str, Any]:
     return meta
 
 
-def _render_survey(args: argparse.Namespace, setup: Any, outputs: list[Path], effects: Any) -> int:
-    from ..rendering.survey import render_survey
+def _render_survey(args: argparse.Namespace, runs: list[tuple], outputs: list[Path]) -> int:
+    """Stream the track to its files block by block.
 
-    meta = _track_metadata(setup)
-    meta.update(setup.notes)
-    written, summary = render_survey(
+    ``runs`` are ``(preset, args, setup, effects)``: one with preset None, or several presets
+    (their PNG/EXR named as :func:`_write` names them, one XTF of all).
+    """
+    from ..rendering.survey import SurveyBand, render_bands
+
+    xtf = next((p for p in outputs if p.suffix.lower() == ".xtf"), None)
+    images = [p for p in outputs if p.suffix.lower() != ".xtf"]
+    bands = []
+    for name, one, setup, effects in runs:
+        meta = _track_metadata(setup)
+        meta.update(setup.notes)
+        files = images if name is None else _named(images, name)
+        display = display_from_args(one, setup)
+        band = SurveyBand(setup.sonar, tuple(files), effects, one.seed, meta, display, name)
+        bands.append(band)
+    setup = runs[0][2]
+    written, summaries = render_bands(
         setup.scene,
-        setup.sonar,
+        bands,
         setup.trajectory,
-        list(outputs),
+        xtf,
         chunk_pings=args.chunk_pings or 512,
         backend=args.gl,
         settings=_settings(args),
         bit_depth=args.bits,
         dynamic_range_db=args.dynamic_range,
-        metadata=meta,
         progress=not args.quiet,
-        effects=effects,
-        seed=args.seed,
     )
     if not args.quiet:
-        print(
-            f"rendered {setup.source}: {setup.trajectory.n_pings} pings x {setup.sonar.n_bins} "
-            f"bins per side in {summary['blocks']} blocks; {summary['draws']} draws, "
-            f"{summary['draws_skipped_empty']} skipped as empty"
-        )
-        for path in written:
+        for (name, _, band_setup, _), summary in zip(runs, summaries, strict=True):
+            what = setup.source if name is None else f"{setup.source} as {name}"
+            print(
+                f"rendered {what}: {setup.trajectory.n_pings} pings x {band_setup.sonar.n_bins} "
+                f"bins per side in {summary['blocks']} blocks; {summary['draws']} draws, "
+                f"{summary['draws_skipped_empty']} skipped as empty"
+            )
+        for path in dict.fromkeys(written):  # a sidecar shared by a PNG and an EXR: once
             print(f"wrote {path}")
     return 0
+
+
+def _named(paths: list[Path], preset: str) -> list[Path]:
+    """A preset's own image files: ``out.png`` → ``out.PRESET.png``."""
+    return [path.with_name(f"{path.stem}.{preset}{path.suffix}") for path in paths]

@@ -78,13 +78,23 @@ def display_mapping(
         raise SonarRasterError("intensity has negative values; display mapping needs I >= 0")
     positive = values > 0
     if ref is None:
-        ref = float(np.percentile(values[positive], 99.5)) if positive.any() else 1.0
+        ref = peak_reference(values)
     if not (math.isfinite(ref) and ref > 0):
         raise SonarRasterError(f"display reference level must be a positive number, got {ref!r}")
     codes = np.zeros_like(values)
     decibels = 10.0 * np.log10(values[positive] / ref)
     codes[positive] = np.clip((decibels + dynamic_range_db) / dynamic_range_db, 0.0, 1.0)
     return codes, float(ref)
+
+
+def peak_reference(values: np.ndarray) -> float:
+    """The raw display's reference (full white): the 99.5th percentile of the non-zero values.
+
+    Linear interpolation between order statistics; 1 when nothing is positive.
+    """
+    positive = np.asarray(values, np.float64)
+    positive = positive[positive > 0]
+    return float(np.percentile(positive, 99.5)) if positive.size else 1.0
 
 
 #: Bounds of the automatic display range, dB.
@@ -219,16 +229,28 @@ def square_pixel_sides(
         ``(i + 0.5) · column_size`` along track, linearly interpolated between pings.
     """
     pings = next(iter(sides.values())).shape[0]
+    lo, hi, w = square_pixel_rows(pings, ping_spacing, column_size)
+    w = w[:, None]
+    return {
+        name: (1.0 - w) * np.asarray(a, np.float64)[lo] + w * np.asarray(a, np.float64)[hi]
+        for name, a in sides.items()
+    }
+
+
+def square_pixel_rows(
+    pings: int, ping_spacing: float, column_size: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For each row of :func:`square_pixel_sides`, its two pings and the second one's weight.
+
+    Row i is ``(1 − w_i) · ping[lo_i] + w_i · ping[hi_i]``; a long image can be resampled in
+    blocks of rows, reading only the pings ``lo`` to ``hi`` of each block.
+    """
     rows = max(1, int(round(pings * ping_spacing / column_size)))
     position = (np.arange(rows) + 0.5) * column_size / ping_spacing - 0.5
     position = np.clip(position, 0.0, pings - 1.0)
     lo = np.floor(position).astype(np.int64)
     hi = np.minimum(lo + 1, pings - 1)
-    w = (position - lo)[:, None]
-    return {
-        name: (1.0 - w) * np.asarray(a, np.float64)[lo] + w * np.asarray(a, np.float64)[hi]
-        for name, a in sides.items()
-    }
+    return lo, hi, position - lo
 
 
 def display_sides(
@@ -255,8 +277,7 @@ def display_sides(
         what a reader needs to map pixels back to pings and bins.
     """
     column = float(image.sonar.range_bin)
-    spacing = display.ping_spacing_m or _metadata_number(image, "ping_spacing_m")
-    spacing = spacing or _metadata_number(image, "effects", "ping_spacing_m")
+    spacing = display_ping_spacing(image, display)
     geometry: dict[str, Any] = {"columns": "slant range", "column_m": column, "row_m": spacing}
     if display.ground_range:
         altitude = display.altitude_m or _metadata_number(image, "altitude_m")
@@ -276,6 +297,15 @@ def display_sides(
         sides = square_pixel_sides(sides, spacing, column)
         geometry["row_m"] = column
     return sides, geometry
+
+
+def display_ping_spacing(image: SonarImage, display: Display) -> float | None:
+    """The along-track distance between pings a display uses, metres; None when unknown.
+
+    The display's own, else the image metadata's ``ping_spacing_m``, else its effects'.
+    """
+    spacing = display.ping_spacing_m or _metadata_number(image, "ping_spacing_m")
+    return spacing or _metadata_number(image, "effects", "ping_spacing_m")
 
 
 def palette_codes(codes: np.ndarray, palette: str) -> np.ndarray:
@@ -424,18 +454,46 @@ def median_reference(values: np.ndarray, dynamic_range_db: float) -> float:
 def _display(
     image: SonarImage, sides: dict[str, np.ndarray], display: Display, dr: float | None
 ) -> tuple[np.ndarray, dict[str, Any]]:
-    """Display codes in [0, 1] of the PNG and the mapping that made them (for the metadata).
+    """Display codes in [0, 1] of the PNG and the mapping that made them (for the metadata)."""
+    shown, geometry = display_sides(image, sides, display)
+    both = SonarImage(shown, image.sonar).display()
+    mapping = display_levels(image, both, display, dr, geometry)
+    codes, _ = display_mapping(both, mapping["dynamic_range_db"], mapping["ref_level_m2"])
+    return codes, mapping
+
+
+def display_levels(
+    image: SonarImage,
+    shown: np.ndarray,
+    display: Display,
+    dynamic_range_db: float | None,
+    geometry: dict[str, Any],
+) -> dict[str, Any]:
+    """The PNG's display mapping (reference level, range, and how it is shown), as metadata.
 
     A raw image with the default :class:`Display` gets exactly the mapping it always had (the
     same keys too); other settings add ``level``, ``palette`` and ``geometry`` entries.
+
+    Parameters
+    ----------
+    image : SonarImage
+        The image (its metadata says whether sensor effects levelled it).
+    shown : ndarray
+        Its intensities as displayed (:meth:`SonarImage.display` of :func:`display_sides`), or
+        an even subsample of their rows: the levels are taken from them.
+    display : Display
+        Level, palette and geometry asked for.
+    dynamic_range_db : float, optional
+        The range shown; None: :data:`LEVELLED_RANGE_DB` when levelled, else
+        :func:`auto_dynamic_range`.
+    geometry : dict
+        The pixel geometry (:func:`display_sides`).
     """
     level = display.level or ("median" if _has_effects(image) else "peak")
-    shown, geometry = display_sides(image, sides, display)
-    both = SonarImage(shown, image.sonar).display()
+    dr = dynamic_range_db
     if dr is None:
-        dr = LEVELLED_RANGE_DB if level == "median" else auto_dynamic_range(both)
-    ref = median_reference(both, dr) if level == "median" else None
-    codes, ref = display_mapping(both, dr, ref)
+        dr = LEVELLED_RANGE_DB if level == "median" else auto_dynamic_range(shown)
+    ref = median_reference(shown, dr) if level == "median" else peak_reference(shown)
     mapping: dict[str, Any] = {
         "ref_level_m2": ref,
         "dynamic_range_db": float(dr),
@@ -446,7 +504,7 @@ def _display(
         mapping.update(level=level, palette=display.palette, geometry=geometry)
         if display.palette == "copper":
             mapping["palette_formula"] = COPPER_FORMULA
-    return codes, mapping
+    return mapping
 
 
 def read_spec(path: str | os.PathLike) -> oiio.ImageSpec | None:

@@ -4,7 +4,8 @@
 Three models of the same integral: the GL raster (:func:`render_raster`, fast, in ``gl/``), the
 numpy patch reference (:func:`render_reference`, slow, the oracle of the raster) and the coherent
 model (:func:`render_coherent`, point scatterers and a matched filter, with speckle).
-:func:`render_survey` streams long tracks in blocks to disk.
+:func:`render_survey` streams long tracks in blocks to disk; :func:`render_bands` several sonars
+over one track (a dual-frequency side-scan), each :class:`SurveyBand` to its own files.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ if TYPE_CHECKING:
     from .entry import MODELS, render
     from .gl import RasterRenderer, RasterSettings, render_raster
     from .reference import render_reference
-    from .survey import render_survey
+    from .survey import SurveyBand, render_bands, render_survey
 
 __all__ = [
     "MODELS",
@@ -27,8 +28,10 @@ __all__ = [
     "Pulse",
     "RasterRenderer",
     "RasterSettings",
+    "SurveyBand",
     "flat_seabed_profile",
     "render",
+    "render_bands",
     "render_coherent",
     "render_raster",
     "render_reference",
@@ -53,5 +56,7 @@ __getattr__, __dir__ = lazy_exports(
         "render_raster": "gl.raster",
         "render_reference": "reference",
         "render_survey": "survey",
+        "render_bands": "survey",
+        "SurveyBand": "survey",
     },
 )

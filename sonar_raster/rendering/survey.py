@@ -3,19 +3,22 @@
 A survey line of 10⁵ pings × 4096 bins is 3.3 GB of float32 per side pair: more than a
 laptop wants to hold, and more than a GL buffer may be. :func:`render_survey` renders the
 track block by block (:meth:`RasterRenderer.render_chunks`) and appends each block to an EXR
-as scanlines (and to an XTF, ping records, when asked), so peak memory follows the block size,
-not the track. A PNG is made afterwards
-from the finished EXR, block by block again, with its display mapping taken from an even
-subsample of the pings. Every output is written under a temporary name and renamed into place
-only when all are complete (:func:`~sonar_raster.io.commit.install`, which restores the old
-files if a rename fails). Temporary names carry the process id, so a run killed by SIGKILL
-leaves files that the next run of the same target removes.
+as scanlines, so peak memory follows the block size, not the track. A PNG is made afterwards
+from the finished EXR, block by block again, with its display levels taken from an even
+subsample of the pings and its palette and pixel geometry as asked; an XTF likewise.
+:func:`render_bands` does the same for several sonars over one track (the bands of a
+dual-frequency side-scan), one file per band and one XTF holding them all. Every output is
+written under a temporary name and renamed into place only when all are complete
+(:func:`~sonar_raster.io.commit.install`, which restores the old files if a rename fails).
+Temporary names carry the process id, so a run killed by SIGKILL leaves files that the next
+run of the same target removes.
 """
 
 from __future__ import annotations
 
 import math
 import os
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -84,6 +87,40 @@ class ExrStreamWriter:
             raise SonarRasterError(f"survey stopped after {self.rows} of {self.n_pings} pings")
 
 
+@dataclass(frozen=True)
+class SurveyBand:
+    """One sonar of a streamed survey and its image files (one band of a dual-frequency set).
+
+    Attributes
+    ----------
+    sonar : Sonar
+        The band's sonar.
+    outputs : tuple of Path
+        Its .exr and .png files, each with a JSON sidecar; empty when it only goes into the XTF.
+    effects : Effects, optional
+        Sensor effects applied block by block
+        (:func:`~sonar_raster.effects.chain.apply_effects_blocks`: exact along track across
+        blocks, random fields drawn per block, the first block's full scale throughout).
+    seed : int, optional
+        Seed of the effects' random stages.
+    metadata : dict
+        Added to its files' metadata.
+    display : Display, optional
+        Level, palette and pixel geometry of its PNG (:class:`~sonar_raster.io.images.Display`;
+        default: levelled when it has effects, grey, slant range, one row per ping).
+    name : str, optional
+        Shown beside the progress bar.
+    """
+
+    sonar: Sonar
+    outputs: tuple[Path, ...] = ()
+    effects: Any = None
+    seed: int | None = None
+    metadata: dict = field(default_factory=dict)
+    display: sio.Display | None = None
+    name: str | None = None
+
+
 def render_survey(
     scene: Scene,
     sonar: Sonar,
@@ -99,6 +136,7 @@ def render_survey(
     progress: bool = False,
     effects: Any = None,
     seed: int | None = None,
+    display: sio.Display | None = None,
 ) -> tuple[list[Path], dict]:
     """Render a track block by block straight to EXR/PNG files, with a JSON sidecar per file.
 
@@ -114,18 +152,14 @@ def render_survey(
     backend, settings
         GL backend and sampling settings of the renderer.
     bit_depth, dynamic_range_db
-        PNG display mapping, as in :func:`sonar_raster.write_image`; an automatic range is
-        chosen from an even subsample of :data:`STAT_ROWS` pings.
+        PNG display mapping, as in :func:`sonar_raster.write_image`; the levels are taken from
+        an even subsample of :data:`STAT_ROWS` pings.
     metadata : dict, optional
         Added to every file's metadata.
     progress : bool
         Show a progress bar over the blocks.
-    effects : Effects, optional
-        Sensor effects applied block by block
-        (:func:`~sonar_raster.effects.chain.apply_effects_blocks`: exact along track across
-        blocks, random fields drawn per block, the first block's full scale throughout).
-    seed : int, optional
-        Seed of the effects' random stages.
+    effects, seed, display
+        As :class:`SurveyBand`'s.
 
     Returns
     -------
@@ -138,118 +172,169 @@ def render_survey(
     for path in paths:
         if path.suffix.lower() not in (*sio.SUPPORTED, ".xtf"):
             raise SonarRasterError(f"cannot write {path}: use .exr, .png or .xtf")
-        check_writable(path)
-        if path.suffix.lower() != ".xtf":
+    xtf = next((p for p in paths if p.suffix.lower() == ".xtf"), None)
+    images = tuple(p for p in paths if p.suffix.lower() != ".xtf")
+    band = SurveyBand(sonar, images, effects, seed, dict(metadata or {}), display)
+    written, summaries = render_bands(
+        scene,
+        [band],
+        trajectory,
+        xtf,
+        chunk_pings=chunk_pings,
+        backend=backend,
+        settings=settings,
+        bit_depth=bit_depth,
+        dynamic_range_db=dynamic_range_db,
+        progress=progress,
+    )
+    return written, summaries[0]
+
+
+def render_bands(
+    scene: Scene,
+    bands: list[SurveyBand],
+    trajectory: Trajectory,
+    xtf: str | os.PathLike | None = None,
+    *,
+    chunk_pings: int = 512,
+    backend: str | None = None,
+    settings: RasterSettings | None = None,
+    bit_depth: int = 8,
+    dynamic_range_db: float | None = None,
+    progress: bool = False,
+) -> tuple[list[Path], list[dict]]:
+    """Render several sonars over one track block by block: their files, and one XTF of all.
+
+    Each band is streamed in turn to a temporary EXR (then its PNG, from that EXR); the XTF is
+    written last from those EXRs, block by block, every ping holding every band's channels
+    (a dual-frequency side-scan's file). Memory follows the block, not the track. Every file
+    is replaced, or none.
+
+    Parameters
+    ----------
+    scene, trajectory
+        What to render.
+    bands : list of SurveyBand
+        The sonars, their effects and their image files.
+    xtf : path, optional
+        The XTF of every band.
+    chunk_pings, backend, settings, bit_depth, dynamic_range_db, progress
+        As for :func:`render_survey`.
+
+    Returns
+    -------
+    written : list of Path
+        Every file written.
+    summaries : list of dict
+        Each band's counters (:func:`render_survey`).
+    """
+    if not bands:
+        raise SonarRasterError("no sonar to render")
+    xtf_final = Path(xtf) if xtf is not None else None
+    if xtf_final is not None and xtf_final.suffix.lower() != ".xtf":
+        raise SonarRasterError(f"cannot write {xtf_final} as XTF: its name must end in .xtf")
+    for band in bands:
+        for path in band.outputs:
+            if path.suffix.lower() not in sio.SUPPORTED:
+                raise SonarRasterError(f"cannot write {path}: use .exr, .png or .xtf")
+            check_writable(path)
             check_writable(path.with_suffix(".json"))
-    xtf_final = next((p for p in paths if p.suffix.lower() == ".xtf"), None)
+    if xtf_final is not None:
+        check_writable(xtf_final)
     if bit_depth not in (8, 16):
         raise SonarRasterError(f"PNG bit depth must be 8 or 16, got {bit_depth!r}")
-    exr_final = next((p for p in paths if p.suffix.lower() == ".exr"), None)
-    exr_base = exr_final or paths[0].with_suffix(".exr")
-    sweep_stale(exr_base)  # a killed run's scanline file of the same target
-    exr_tmp = temp_name(exr_base)
-    xtf_tmp = temp_name(xtf_final) if xtf_final else None
-    temps: list[Path] = [exr_tmp] + ([xtf_tmp] if xtf_tmp else [])
+    first = bands[0].outputs[0] if bands[0].outputs else xtf_final
+    if first is None:
+        raise SonarRasterError("nothing to write: give an .exr, .png or .xtf output")
+    temps: list[Path] = []
+    jobs: list[tuple[Path, Path]] = []
+    summaries: list[dict] = []
+    exrs: list[Path] = []
     try:
-        stats, summary, meta = _stream_blocks(
-            scene,
-            sonar,
-            trajectory,
-            (exr_tmp, xtf_tmp),
-            chunk_pings,
-            backend,
-            settings,
-            progress,
-            effects=effects,
-            seed=seed,
-        )
-        meta.update(metadata or {})
-        levelled = effects is not None  # as write_image shows an image with effects
-        if dynamic_range_db is None:
-            dynamic_range_db = sio.LEVELLED_RANGE_DB if levelled else sio.auto_dynamic_range(stats)
-        ref = sio.median_reference(stats, dynamic_range_db) if levelled else None
-        _, ref = sio.display_mapping(stats, dynamic_range_db, ref)
-        mapping = {
-            "ref_level_m2": ref,
-            "dynamic_range_db": float(dynamic_range_db),
-            "formula": sio.MAPPING_FORMULA,
-            "chosen_from": f"{len(stats)} evenly spaced pings",
-        }
-        if levelled:
-            spacing = float(trajectory.typical_spacing) or None
-            geometry = {"columns": "slant range", "column_m": sonar.range_bin, "row_m": spacing}
-            mapping.update(level="median", palette="grey", geometry=geometry)
-        header = SonarImage({s: np.zeros((1, 1), np.float32) for s in sonar.sides}, sonar, meta)
-        jobs: list[tuple[Path, Path]] = []
-        for path in paths:
-            if path == xtf_final and xtf_tmp is not None:
-                jobs.append((xtf_tmp, path))
-                continue
-            if path.suffix.lower() == ".png":
-                tmp = temp_name(path)
-                temps.append(tmp)
-                _png_from_exr(exr_tmp, tmp, header, mapping, bit_depth, chunk_pings)
-                jobs.append((tmp, path))
-            elif path == exr_final:
-                jobs.append((exr_tmp, path))
-            sidecar = temp_name(path.with_suffix(".json"))
-            temps.append(sidecar)
-            doc = sio.sidecar_document(header, mapping)
-            doc["shape"] = [trajectory.n_pings, sonar.n_bins]  # type: ignore[index]
-            write_json(sidecar, doc)
-            jobs.append((sidecar, path.with_suffix(".json")))
+        for band in bands:
+            exr_final = next((p for p in band.outputs if p.suffix.lower() == ".exr"), None)
+            exr_base = exr_final or (band.outputs[0] if band.outputs else first).with_suffix(".exr")
+            sweep_stale(exr_base)  # a killed run's scanline file of the same target
+            exr_tmp = temp_name(exr_base)
+            temps.append(exr_tmp)
+            exrs.append(exr_tmp)
+            stats, summary, meta = _stream_blocks(
+                scene, band, trajectory, exr_tmp, chunk_pings, backend, settings, progress
+            )
+            summaries.append(summary)
+            meta.update(band.metadata)
+            header = SonarImage({s: np.zeros((1, 1), np.float32) for s in stats}, band.sonar, meta)
+            display = band.display or sio.Display(
+                ping_spacing_m=float(trajectory.typical_spacing) or None
+            )
+            mapping = _levels(header, stats, display, dynamic_range_db)
+            for path in band.outputs:
+                if path.suffix.lower() == ".png":
+                    tmp = temp_name(path)
+                    temps.append(tmp)
+                    _png_from_exr(exr_tmp, tmp, header, display, mapping, bit_depth, chunk_pings)
+                    jobs.append((tmp, path))
+                else:
+                    jobs.append((exr_tmp, path))
+                sidecar = temp_name(path.with_suffix(".json"))
+                temps.append(sidecar)
+                doc = sio.sidecar_document(header, mapping)
+                doc["shape"] = [trajectory.n_pings, band.sonar.n_bins]  # type: ignore[index]
+                write_json(sidecar, doc)
+                jobs.append((sidecar, path.with_suffix(".json")))
+        if xtf_final is not None:
+            xtf_tmp = temp_name(xtf_final)
+            temps.append(xtf_tmp)
+            _xtf_from_exrs(xtf_tmp, exrs, bands, trajectory, scene.ground_z, chunk_pings)
+            jobs.append((xtf_tmp, xtf_final))
         install(jobs)  # every output replaced, or none
     except OSError as exc:
-        raise SonarRasterError(f"cannot write {paths[0]}: {exc.strerror or exc}") from None
+        raise SonarRasterError(f"cannot write {first}: {exc.strerror or exc}") from None
     finally:
         for tmp in temps:
             tmp.unlink(missing_ok=True)
-    return [final for _, final in jobs], summary
+    return [final for _, final in jobs], summaries
 
 
 def _stream_blocks(
     scene: Scene,
-    sonar: Sonar,
+    band: SurveyBand,
     trajectory: Trajectory,
-    temps: tuple[Path, Path | None],
+    exr_tmp: Path,
     chunk_pings: int,
     backend: str | None,
     settings: RasterSettings | None,
     progress: bool,
-    *,
-    effects: Any = None,
-    seed: int | None = None,
-) -> tuple[np.ndarray, dict, dict]:
-    """Render into the temporary EXR (and XTF); return display rows, counters and metadata."""
+) -> tuple[dict[str, np.ndarray], dict, dict]:
+    """Render one band into its temporary EXR; return its sampled pings, counters, metadata."""
     n_pings = trajectory.n_pings
     stride = max(1, math.ceil(n_pings / STAT_ROWS))
-    exr_tmp, xtf_tmp = temps
     writer = ExrStreamWriter(exr_tmp, n_pings)
-    xtf = _XtfStream(xtf_tmp, trajectory, scene.ground_z) if xtf_tmp else None
-    rows: list[np.ndarray] = []
+    rows: list[dict[str, np.ndarray]] = []
     summary = {"blocks": 0, "draws": 0, "draws_skipped_empty": 0, "triangles_drawn": 0}
     meta: dict = {}
     with RasterRenderer(backend, settings) as renderer:
-        blocks = renderer.render_chunks(scene, sonar, trajectory, chunk_pings)
-        if effects is not None:  # one block behind the renderer: each block sees its neighbours
+        blocks = renderer.render_chunks(scene, band.sonar, trajectory, chunk_pings)
+        if band.effects is not None:  # one block behind the renderer: it sees its neighbours
             from ..effects.chain import apply_effects_blocks
 
             spacing = trajectory.typical_spacing
-            blocks = apply_effects_blocks(blocks, effects, seed=seed, ping_spacing=spacing)
+            blocks = apply_effects_blocks(
+                blocks, band.effects, seed=band.seed, ping_spacing=spacing
+            )
         if progress:
             from tqdm import tqdm
 
             total = math.ceil(n_pings / chunk_pings)
-            blocks = tqdm(blocks, total=total, desc="rendering", unit="block", disable=None)
+            desc = f"rendering {band.name}" if band.name else "rendering"
+            blocks = tqdm(blocks, total=total, desc=desc, unit="block", disable=None)
         try:
             for block in blocks:
-                sio.checked_sides(block)  # finite, one shape: raises before anything is kept
+                sides = sio.checked_sides(block)  # finite, one shape: raises before it is kept
                 writer.write(block)
-                if xtf is not None:
-                    xtf.write(block)
                 first = int(block.metadata["first_ping"])
                 keep = np.arange((-first) % stride, block.shape[0], stride)
-                rows.append(block.display()[keep])
+                rows.append({side: values[keep] for side, values in sides.items()})
                 summary["blocks"] += 1
                 for key, value in block.metadata["counters"].items():
                     summary[key] += value
@@ -257,35 +342,73 @@ def _stream_blocks(
         except BaseException:
             _abandon(writer)
             raise
-        finally:
-            if xtf is not None:
-                xtf.close()
     writer.close()
     meta["survey"] = {"chunk_pings": chunk_pings, **summary}
     if "effects" in meta:  # the last block's record, less what is per block
         record = {k: v for k, v in meta["effects"].items() if k not in ("block", "seed")}
         meta["effects"] = {**record, "streamed": "apply_effects_blocks"}  # keeps stream_seed
-    return np.concatenate(rows), summary, meta
+    stats = {side: np.concatenate([r[side] for r in rows]) for side in rows[0]}
+    return stats, summary, meta
 
 
-class _XtfStream:
-    """XTF ping records appended block by block (altitude = height above the scene's ground)."""
+def _levels(
+    header: SonarImage, stats: dict[str, np.ndarray], display: sio.Display, dr: float | None
+) -> dict:
+    """The PNG's display mapping from the sampled pings, shown as the display asks."""
+    flat = replace(display, square_pixels=False)  # resampling along track is not for levels
+    shown, _ = sio.display_sides(header, stats, flat)
+    two = {side: values[:2] for side, values in stats.items()}
+    _, geometry = sio.display_sides(header, two, display)
+    mapping = sio.display_levels(header, SonarImage(shown, header.sonar).display(), display, dr,
+                                 geometry)  # fmt: skip
+    mapping["chosen_from"] = f"{len(next(iter(stats.values())))} evenly spaced pings"
+    return mapping
 
-    def __init__(self, tmp: Path, trajectory: Trajectory, ground_z: float):
-        from ..io.xtf import XtfWriter
 
-        self.fh = open(tmp, "xb")  # closed by close(), after the last block
-        self.writer = XtfWriter(self.fh)
-        self.trajectory, self.ground_z = trajectory, ground_z
+def _xtf_from_exrs(
+    tmp: Path,
+    exrs: list[Path],
+    bands: list[SurveyBand],
+    trajectory: Trajectory,
+    ground_z: float,
+    block: int,
+) -> None:
+    """Write the XTF of every band from their finished EXRs, ``block`` pings at a time."""
+    from ..io.xtf import XtfWriter
 
-    def write(self, block: SonarImage) -> None:
-        first = int(block.metadata["first_ping"])
-        rows = slice(first, first + block.shape[0])
-        poses = self.trajectory.subset(rows)
-        self.writer.write(block, poses, poses.positions[:, 2] - self.ground_z)
+    inputs = [_open_exr(path) for path in exrs]
+    try:
+        with open(tmp, "xb") as fh:
+            writer = XtfWriter(fh)
+            for y0 in range(0, trajectory.n_pings, block):
+                y1 = min(trajectory.n_pings, y0 + block)
+                images = [
+                    SonarImage(_read_rows(inp, y0, y1), band.sonar)
+                    for inp, band in zip(inputs, bands, strict=True)
+                ]
+                poses = trajectory.subset(slice(y0, y1))
+                writer.write(images, poses, poses.positions[:, 2] - ground_z)
+    finally:
+        for inp in inputs:
+            inp.close()
 
-    def close(self) -> None:
-        self.fh.close()
+
+def _open_exr(path: Path) -> Any:
+    inp = oiio.ImageInput.open(str(path))
+    if inp is None:
+        raise SonarRasterError(f"cannot read back {path}: {oiio.geterror()}")
+    return inp
+
+
+def _read_rows(inp: Any, y0: int, y1: int) -> dict[str, np.ndarray]:
+    """Pings ``y0`` to ``y1`` (excluded) of an open EXR, per side."""
+    spec = inp.spec()
+    names = list(spec.channelnames)
+    px = inp.read_scanlines(0, 0, y0, y1, 0, 0, len(names), oiio.FLOAT)
+    if px is None:
+        raise SonarRasterError(f"cannot read back pings {y0}-{y1}: {inp.geterror()}")
+    px = np.asarray(px, dtype=np.float32).reshape(y1 - y0, spec.width, len(names))
+    return {name: px[:, :, i] for i, name in enumerate(names)}
 
 
 def _abandon(writer: ExrStreamWriter) -> None:
@@ -295,41 +418,69 @@ def _abandon(writer: ExrStreamWriter) -> None:
 
 
 def _png_from_exr(
-    exr: Path, tmp: Path, header: SonarImage, mapping: dict, bit_depth: int, block: int
+    exr: Path,
+    tmp: Path,
+    header: SonarImage,
+    display: sio.Display,
+    mapping: dict,
+    bit_depth: int,
+    block: int,
 ) -> None:
-    """Write the display PNG of a finished EXR, ``block`` pings at a time."""
-    inp = oiio.ImageInput.open(str(exr))
-    if inp is None:
-        raise SonarRasterError(f"cannot read back {exr}: {oiio.geterror()}")
+    """Write the display PNG of a finished EXR, ``block`` rows at a time.
+
+    The rows are the display's (:func:`~sonar_raster.io.images.display_sides`): pings, or with
+    square pixels rows one range bin long, each read with the two pings it lies between.
+    """
+    inp = _open_exr(exr)
     try:
-        spec = inp.spec()
-        names = list(spec.channelnames)
-        width = spec.width * len(names)
-        fmt = sio.png_type(bit_depth)[1]
-        out_spec = oiio.ImageSpec(width, spec.height, 1, fmt)
-        out_spec.channelnames = ("Y",)
-        for name, value in sio.png_attributes(header, mapping, bit_depth).items():
-            out_spec.attribute(name, value)
-        out = oiio.ImageOutput.create(str(tmp))
-        if out is None or not out.open(str(tmp), out_spec):
-            raise SonarRasterError(f"cannot write {tmp}: {oiio.geterror()}")
+        pings = inp.spec().height
+        lo, hi, w = np.arange(pings), np.arange(pings), np.zeros(pings)
+        if display.square_pixels:
+            spacing = sio.display_ping_spacing(header, display)
+            if spacing is None:  # _levels said so first
+                raise SonarRasterError("square pixels need the ping spacing")
+            lo, hi, w = sio.square_pixel_rows(pings, spacing, header.sonar.range_bin)
+        flat = replace(display, square_pixels=False)
+        out = None
         try:
-            for y0 in range(0, spec.height, block):
-                y1 = min(spec.height, y0 + block)
-                px = inp.read_scanlines(0, 0, y0, y1, 0, 0, len(names), oiio.FLOAT)
-                px = np.asarray(px, dtype=np.float32).reshape(y1 - y0, spec.width, len(names))
-                sides = {n: px[:, :, i] for i, n in enumerate(names)}
-                display = SonarImage(sides, header.sonar).display()
+            for r0 in range(0, len(lo), block):
+                r1 = min(len(lo), r0 + block)
+                p0, p1 = int(lo[r0]), int(hi[r1 - 1]) + 1
+                sides = _read_rows(inp, p0, p1)
+                a, b, f = lo[r0:r1] - p0, hi[r0:r1] - p0, w[r0:r1, None]
+                sides = {n: (1.0 - f) * v[a] + f * v[b] for n, v in sides.items()}
+                shown, _ = sio.display_sides(header, sides, flat)
                 codes, _ = sio.display_mapping(
-                    display, mapping["dynamic_range_db"], mapping["ref_level_m2"]
+                    SonarImage(shown, header.sonar).display(),
+                    mapping["dynamic_range_db"],
+                    mapping["ref_level_m2"],
                 )
-                quantised = sio.quantised_codes(codes, bit_depth)[0]
-                if not out.write_scanlines(y0, y1, 0, quantised[:, :, np.newaxis]):
+                pixels = sio.palette_codes(codes, mapping.get("palette", "grey"))
+                quantised, fmt = sio.quantised_codes(pixels, bit_depth)
+                if out is None:
+                    out = _open_png(tmp, header, mapping, bit_depth, quantised, len(lo), fmt)
+                if not out.write_scanlines(r0, r1, 0, quantised):
                     raise SonarRasterError(f"cannot write {tmp}: {out.geterror()}")
         finally:
-            out.close()
+            if out is not None:
+                out.close()
     finally:
         inp.close()
+
+
+def _open_png(
+    tmp: Path, header: SonarImage, mapping: dict, bit_depth: int, first: np.ndarray, rows: int,
+    fmt: Any,
+) -> Any:  # fmt: skip
+    """Open the PNG for ``rows`` rows shaped as its first block of codes."""
+    spec = oiio.ImageSpec(first.shape[1], rows, first.shape[2], fmt)
+    spec.channelnames = ("Y",) if first.shape[2] == 1 else ("R", "G", "B")
+    for name, value in sio.png_attributes(header, mapping, bit_depth).items():
+        spec.attribute(name, value)
+    out = oiio.ImageOutput.create(str(tmp))
+    if out is None or not out.open(str(tmp), spec):
+        raise SonarRasterError(f"cannot write {tmp}: {oiio.geterror()}")
+    return out
 
 
 def _whole_track_metadata(metadata: dict) -> dict:

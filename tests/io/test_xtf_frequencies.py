@@ -12,6 +12,7 @@ import pytest
 from sonar_raster.cli.app import main
 from sonar_raster.errors import SonarRasterError
 from sonar_raster.image import SonarImage
+from sonar_raster.io.images import read_exr
 from sonar_raster.io.xtf import XtfReader, read_xtf, read_xtf_track, write_xtf
 from sonar_raster.sonar import Sonar
 from sonar_raster.trajectory import Trajectory
@@ -260,7 +261,7 @@ def test_render_writes_two_presets_as_one_dual_frequency_file(tmp_path, capsys):
         ("klein-3900-445,klein-3900-445", [], "different presets once each"),
         ("klein-3900-445,nope", [], "nope"),
         ("klein-3900-445,klein-3900-900", ["--frequency", "400"], "--frequency with several"),
-        ("klein-3900-445,klein-3900-900", ["--chunk-pings", "8"], "one --sensor preset at a time"),
+        ("klein-3900-445,klein-3900-900", ["--ideal"], "one --sensor preset at a time"),
     ],
 )
 def test_render_with_presets_it_cannot_combine_is_one_line(tmp_path, capsys, sensor, more, says):
@@ -269,3 +270,28 @@ def test_render_with_presets_it_cannot_combine_is_one_line(tmp_path, capsys, sen
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and says in err[0], err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_two_presets_stream_a_long_track_block_by_block(tmp_path):
+    """``--sensor A,B --chunk-pings N`` (a track too long to hold streams so too): each preset
+    streamed to its own EXR and PNG, one XTF of both read back from them; the first preset's
+    band is the one its streamed render alone makes, the second its own EXR."""
+    dual, alone = tmp_path / "dual", tmp_path / "alone"
+    dual.mkdir()
+    alone.mkdir()
+    common = ["render", "default", "--pings", "40", "--seed", "2", "-q", "--chunk-pings", "16"]
+    argv = [*common, "--sensor", "klein-3900-445,klein-3900-900", "-o", str(dual / "d.xtf")]
+    assert main([*argv, "-o", str(dual / "d.exr"), "-o", str(dual / "d.png")]) == 0
+    assert main([*common, "--sensor", "klein-3900-445", "-o", str(alone / "one.xtf")]) == 0
+    names = sorted(p.name for p in dual.iterdir())
+    expected = [f"d.{k}.{e}" for k in ("klein-3900-445", "klein-3900-900")
+                for e in ("exr", "json", "png")]  # fmt: skip
+    assert names == sorted([*expected, "d.xtf"])
+    low, _ = read_xtf(dual / "d.xtf", frequency="low")
+    high, _ = read_xtf(dual / "d.xtf", frequency="high")
+    assert low.shape == (40, 4000) and high.shape == (40, 5333)
+    _same(low, read_xtf(alone / "one.xtf")[0])
+    exr, attrs = read_exr(dual / "d.klein-3900-900.exr")
+    assert attrs["sonar:frequency_hz"] == pytest.approx(900e3)
+    for side, values in exr.items():
+        np.testing.assert_array_equal(values, high.sides[side])

@@ -10,7 +10,7 @@ from conftest import box_from_bounds, rect_seabed
 
 from sonar_raster.cli.app import main
 from sonar_raster.errors import SonarRasterError
-from sonar_raster.io.images import read_exr, read_pixels, write_image
+from sonar_raster.io.images import Display, read_exr, read_pixels, write_image
 from sonar_raster.rendering.gl.raster import render_raster
 from sonar_raster.rendering.survey import render_survey
 from sonar_raster.scene import build_scene
@@ -53,6 +53,43 @@ def test_streamed_files_match_the_whole_image(tmp_path, setup):
     assert np.mean(np.abs(streamed - direct) > 1.5 / 255) < 1e-3
 
 
+@pytest.mark.parametrize(
+    "display",
+    [
+        Display(palette="copper"),
+        Display(ground_range=True, altitude_m=6.0),
+        Display(square_pixels=True, ping_spacing_m=0.25),
+        Display(
+            level="median",
+            palette="copper",
+            ground_range=True,
+            square_pixels=True,
+            altitude_m=6.0,
+            ping_spacing_m=0.25,
+        ),  # fmt: skip
+    ],
+)
+def test_a_streamed_png_is_shown_as_asked(tmp_path, setup, display):
+    """Level, palette, ground range and square pixels reach a streamed PNG: its pixels are the
+    whole image's PNG with the same display (rows of square pixels read across blocks)."""
+    scene, sonar, traj = setup
+    written, _ = render_survey(
+        scene, sonar, traj, [tmp_path / "s.png"], chunk_pings=16, display=display
+    )
+    doc = json.loads((tmp_path / "s.json").read_text())["display_mapping"]
+    whole = render_raster(scene, sonar, traj)
+    write_image(whole, tmp_path / "w.png", dynamic_range_db=doc["dynamic_range_db"],
+                display=display)  # fmt: skip
+    streamed, _ = read_pixels(tmp_path / "s.png")
+    direct, _ = read_pixels(tmp_path / "w.png")
+    assert streamed.shape == direct.shape
+    assert streamed.shape[2] == (3 if display.palette == "copper" else 1)
+    assert streamed.shape[0] == (175 if display.square_pixels else 70)  # 70 x 0.25 m / 0.1 m
+    assert np.mean(np.abs(streamed - direct) > 1.5 / 255) < 1e-3
+    shown = json.loads((tmp_path / "w.json").read_text())["display_mapping"]
+    assert doc["geometry"] == shown["geometry"] and doc["palette"] == display.palette
+
+
 def test_a_failed_survey_leaves_nothing(tmp_path, setup, monkeypatch):
     scene, sonar, traj = setup
     (tmp_path / "s.exr").write_bytes(b"user's old file")
@@ -83,6 +120,11 @@ def test_cli_streams_with_chunk_pings(tmp_path, capsys):
     )
     assert code == 2
     assert "--chunk-pings needs the GL raster renderer" in capsys.readouterr().err
+    png = tmp_path / "copper.png"
+    argv = ["render", "default", "--pings", "20", "--palette", "copper", "--ground-range"]
+    assert main([*argv, "-o", str(png), "--chunk-pings", "8", "-q"]) == 0
+    pixels, _ = read_pixels(png)
+    assert pixels.shape[2] == 3 and pixels.shape[1] < 2000  # copper, ground range (no water)
 
 
 def test_streamed_and_whole_xtf_read_back_the_same(tmp_path):
