@@ -68,7 +68,12 @@ def add_parser(sub: Any) -> None:
         help="what the file's samples are (auto: intensity in files sonar-raster wrote, "
         "else amplitude)",
     )
-    add_xtf_frequency(p, "; the objects go into that pair, the other stays as recorded")
+    add_xtf_frequency(
+        p,
+        "; the objects go into that pair, the other stays as recorded; all: into every pair, "
+        "each rendered at its own frequency, range and bins, with labels per pair "
+        "(OUT.445kHz.png, ...)",
+    )
     p.add_argument(
         "--seabed-reflectivity",
         type=float,
@@ -88,9 +93,7 @@ def add_parser(sub: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``sonar-raster insert``."""
-    from ..insert.insertion import insert_objects
-    from ..insert.outputs import insertion_jobs, output_paths
-    from ..insert.recording import read_recording
+    from ..insert.outputs import output_paths
     from ..insert.scene import DEFAULT_SEABED_REFLECTIVITY
     from ..io.commit import check_writable, commit
 
@@ -101,25 +104,21 @@ def run(args: argparse.Namespace) -> int:
         reflectivity = DEFAULT_SEABED_REFLECTIVITY
     if not (math.isfinite(reflectivity) and reflectivity > 0):
         raise SonarRasterError(f"--seabed-reflectivity must be > 0, got {reflectivity}")
-    frequency = parse_xtf_frequency(args.xtf_frequency)
     source = Path(args.recording)
+    frequencies = _frequencies(args.xtf_frequency, source)
     paths = output_paths(args.output)
+    if len(frequencies) > 1:
+        paths = {"xtf": paths["xtf"]}
+        for f in frequencies:
+            paths.update(output_paths(_pair_stem(args.output, f), xtf=False))
     for path in paths.values():
         check_writable(path)
         if path.resolve() == source.resolve():
             raise SonarRasterError(f"output {path} would overwrite the recording; choose another")
-    objects = args.objects or ["box"]
-    rec = read_recording(source, samples=args.samples, frequency=frequency)
-    from ..rendering.gl.raster import RasterRenderer
-
-    with RasterRenderer(args.gl) as renderer:
-        ins = insert_objects(
-            rec, objects, at=args.at, seed=args.seed, renderer=renderer,
-            seabed_reflectivity=reflectivity,
-        )  # fmt: skip
-    written = commit(insertion_jobs(ins, args.output, box=args.box, seed=args.seed))
+    inserted = _insert(args, source, frequencies, reflectivity)
+    written = commit(_jobs(args, inserted, frequencies))
     if not args.quiet:
-        for k, o in enumerate(ins.objects, start=1):
+        for k, o in enumerate(inserted[0].objects, start=1):
             r = o.record()
             print(
                 f"object {k} ({r['class']}): ping {r['ping']}, {r['side']} ground range "
@@ -127,6 +126,84 @@ def run(args: argparse.Namespace) -> int:
                 + " x ".join(f"{v:.3g}" for v in r["size_m"])
                 + " m"
             )
+        if len(inserted) > 1:
+            khz = ", ".join(f"{ins.recording.image.sonar.frequency_hz / 1e3:g}" for ins in inserted)
+            print(f"into {len(inserted)} channel pairs: {khz} kHz")
         for path in written:
             print(f"wrote {path}")
     return 0
+
+
+def _frequencies(text: str | None, source: Path) -> list[float | str | None]:
+    """The pairs ``--xtf-frequency`` names: one, or with ``all`` every pair of the file."""
+    if text != "all":
+        return [parse_xtf_frequency(text)]
+    from ..io.xtf import xtf_frequencies
+
+    found = xtf_frequencies(source)
+    if len(found) == 1:
+        return [None]
+    if not all(found):
+        raise SonarRasterError(
+            f"{source} does not record its channel pairs' frequencies: insert into one pair at "
+            "a time (leave out --xtf-frequency for the first)"
+        )
+    return list(found)
+
+
+def _pair_stem(out: str, frequency: float | str | None) -> str:
+    """The label files' stem of one pair: ``OUT.445kHz``."""
+    path = Path(out)
+    stem = path.with_suffix("") if path.suffix.lower() == ".xtf" else path
+    return str(stem.with_name(f"{stem.name}.{float(frequency or 0) / 1e3:g}kHz"))
+
+
+def _insert(
+    args: argparse.Namespace,
+    source: Path,
+    frequencies: list[float | str | None],
+    reflectivity: float,
+) -> list[Any]:
+    """The insertion into each pair, in the order given.
+
+    With several pairs the objects are placed in the pair of the shortest swath (drawn places
+    then fit every pair) and stand at the same ping and ground range in the others.
+    """
+    from ..insert.insertion import insert_objects
+    from ..insert.recording import read_recording
+    from ..rendering.gl.raster import RasterRenderer
+
+    objects = args.objects or ["box"]
+    recordings = [read_recording(source, samples=args.samples, frequency=f) for f in frequencies]
+    pings = {rec.shape[0] for rec in recordings}
+    if len(pings) > 1:
+        raise SonarRasterError(
+            f"{source}: its channel pairs hold different pings ({sorted(pings)}); insert into "
+            "one pair at a time (--xtf-frequency low or high)"
+        )
+    order = sorted(range(len(recordings)), key=lambda k: recordings[k].image.sonar.max_range)
+    out: dict[int, Any] = {}
+    at = args.at
+    with RasterRenderer(args.gl) as renderer:
+        for k in order:
+            out[k] = insert_objects(
+                recordings[k], objects, at=at, seed=args.seed, renderer=renderer,
+                seabed_reflectivity=reflectivity,
+            )  # fmt: skip
+            at = [(o.ping, o.ground_range) for o in out[k].objects]
+    return [out[k] for k in range(len(recordings))]
+
+
+def _jobs(
+    args: argparse.Namespace, inserted: list[Any], frequencies: list[float | str | None]
+) -> list[tuple[Path, Any]]:
+    """The files of one insertion, or of one per pair (labels per pair, one XTF of all)."""
+    from ..insert.outputs import insertion_jobs, xtf_job
+
+    if len(inserted) == 1:
+        return insertion_jobs(inserted[0], args.output, box=args.box, seed=args.seed)
+    jobs = [xtf_job(inserted, args.output)]
+    for ins, frequency in zip(inserted, frequencies, strict=True):
+        stem = _pair_stem(args.output, frequency)
+        jobs += insertion_jobs(ins, stem, box=args.box, seed=args.seed, xtf=False)
+    return jobs

@@ -24,7 +24,7 @@ from ..errors import SonarRasterError
 from .insertion import Insertion
 from .xtf_patch import patch_xtf
 
-__all__ = ["LABEL_CLASSES", "insertion_jobs", "output_paths", "write_label_png"]
+__all__ = ["LABEL_CLASSES", "insertion_jobs", "output_paths", "write_label_png", "xtf_job"]
 
 LABEL_CLASSES = {0: "background", 1: "highlight", 2: "shadow"}
 
@@ -82,13 +82,28 @@ def _write_text(tmp: Path, text: str) -> None:
         fh.write(text)
 
 
-def _write_xtf(tmp: Path, ins: Insertion) -> None:
-    indices = ins.recording.image.metadata.get("ping_indices")
-    if indices is None:
-        raise SonarRasterError("the recording has no ping indices: it was not read from XTF")
-    samples = ins.samples()
-    new = {int(indices[r]): {s: samples[s][r] for s in samples} for r in ins.rows.tolist()}
-    patch_xtf(ins.recording.source, tmp, new, ins.recording.frequency)
+def _write_xtf(tmp: Path, inserted: list[Insertion]) -> None:
+    """The recording with each insertion's changed pings, pair by pair, into ``tmp``."""
+    for k, ins in enumerate(inserted):
+        indices = ins.recording.image.metadata.get("ping_indices")
+        if indices is None:
+            raise SonarRasterError("the recording has no ping indices: it was not read from XTF")
+        samples = ins.samples()
+        new = {int(indices[r]): {s: samples[s][r] for s in samples} for r in ins.rows.tolist()}
+        src = ins.recording.source if k == 0 else tmp  # the pairs before it already in tmp
+        patch_xtf(src, tmp, new, ins.recording.frequency)
+
+
+def xtf_job(inserted: list[Insertion], out: str | Path) -> tuple[Path, Callable[[Path], None]]:
+    """The (final path, writer) job of ``OUT.xtf`` holding several insertions of one recording.
+
+    Each insertion went into one channel pair of the same file (a dual-frequency recording);
+    every other sample is copied as recorded.
+    """
+    sources = {str(ins.recording.source) for ins in inserted}
+    if len(sources) != 1:
+        raise SonarRasterError(f"insertions into different recordings: {sorted(sources)}")
+    return output_paths(out)["xtf"], lambda tmp: _write_xtf(tmp, inserted)
 
 
 def insertion_jobs(
@@ -156,5 +171,5 @@ def insertion_jobs(
         (paths["objects"], lambda tmp: _write_text(tmp, json.dumps(objects, indent=1) + "\n")),
     ]
     if xtf:
-        jobs.insert(0, (paths["xtf"], lambda tmp: _write_xtf(tmp, ins)))
+        jobs.insert(0, xtf_job([ins], out))
     return jobs

@@ -67,7 +67,7 @@ from ..trajectory import Trajectory
 
 __all__ = [
     "SkippedPing", "XtfNavigation", "XtfPing", "XtfReader", "iter_pings", "read_xtf",
-    "read_xtf_track", "track_jumps", "write_xtf",
+    "read_xtf_track", "track_jumps", "write_xtf", "xtf_frequencies",
 ]  # fmt: skip
 
 log = logging.getLogger(__name__)
@@ -264,15 +264,8 @@ class XtfReader:
         self._unread_told = False
 
     def _read_header(self) -> Any:
-        pyxtf = _pyxtf()
         assert self._fh is not None
-        raw = self._fh.read(_FILE_HEADER_BYTES)
-        header = pyxtf.XTFFileHeader.create_from_buffer(raw)
-        if header.FileFormat != XTF_FILE_FORMAT:
-            raise SonarRasterError(
-                f"{self.path} is not an XTF file (format byte {header.FileFormat}, expected "
-                f"{XTF_FILE_FORMAT})"
-            )
+        header = _checked_header(self._fh.read(_FILE_HEADER_BYTES), self.path)
         n = header.channel_count()
         if n > 6:  # each further 6 channels add 1024 bytes of ChanInfo
             first = _FILE_HEADER_BYTES * (1 + (n - 1) // 6)
@@ -490,16 +483,61 @@ def _file_size(path: Path) -> int:
     return size
 
 
+def _checked_header(raw: bytes, path: Path) -> Any:
+    """The XTF file header in ``raw`` (its first 1024 bytes); an error if it is not one."""
+    header = _pyxtf().XTFFileHeader.create_from_buffer(raw)
+    if header.FileFormat != XTF_FILE_FORMAT:
+        raise SonarRasterError(
+            f"{path} is not an XTF file (format byte {header.FileFormat}, expected "
+            f"{XTF_FILE_FORMAT})"
+        )
+    return header
+
+
+def xtf_frequencies(path: str | os.PathLike) -> list[float]:
+    """The frequencies of a file's side-scan channel pairs, Hz, as its header lists them.
+
+    One entry per pair of a port and a starboard channel (two for a dual-frequency side-scan);
+    0 where the header does not record the pair's frequency.
+
+    Raises
+    ------
+    SonarRasterError
+        If the file is missing, not XTF, or has no side-scan channel.
+    """
+    p = Path(path)
+    _file_size(p)
+    with open(p, "rb") as fh:
+        header = _checked_header(fh.read(_FILE_HEADER_BYTES), p)
+    return [1e3 * khz for khz, _ in _channel_sets(header, p)]
+
+
 def _side_channels(header: Any, path: Path, frequency: float | str | None = None) -> dict[str, int]:
     """Side name to ChanInfo index: the port and starboard channels of one frequency.
 
+    ``frequency`` picks one of the :func:`_channel_sets` (:func:`_chosen_set`), by default the
+    first, with a line naming the others. A side taken from past the header's count is said.
+    """
+    n = min(int(header.NumberOfSonarChannels), 6)
+    out = _chosen_set(_channel_sets(header, path), frequency, path)
+    for side, k in out.items():
+        if k >= n:
+            log.warning(
+                "%s: the header counts %d sonar channel(s) but ChanInfo %d describes the %s "
+                "side: reading it too",
+                path, n, k, side,
+            )  # fmt: skip
+    return dict(sorted(out.items()))
+
+
+def _channel_sets(header: Any, path: Path) -> list[tuple[float, dict[str, int]]]:
+    """The file's side-scan channels grouped into pairs: (kHz or 0, side to ChanInfo index).
+
     A side missing from the channels the header counts is taken from the ChanInfo entries past
     the count (of the first file header's 6) when one describes it with a sample size, so a
-    count of 1 in a two-sided file does not drop starboard; a warning says so. The counted
-    side-scan channels are grouped into sets of one port and one starboard channel (by
-    ``Frequency`` where the header gives it, else in order: a dual-frequency file's two pairs);
-    ``frequency`` picks one (:func:`_chosen_set`), by default the first, with a line naming the
-    others.
+    count of 1 in a two-sided file does not drop starboard. The counted side-scan channels are
+    grouped into sets of one port and one starboard channel (by ``Frequency`` where the header
+    gives it, else in order: a dual-frequency file's two pairs).
     """
     n = min(int(header.NumberOfSonarChannels), 6)
     sets: list[tuple[float, dict[str, int]]] = []
@@ -519,15 +557,7 @@ def _side_channels(header: Any, path: Path, frequency: float | str | None = None
                 sets.append((khz, {side: k}))
     if not sets:
         raise SonarRasterError(f"{path} has no port or starboard side-scan channel")
-    out = _chosen_set(sets, frequency, path)
-    for side, k in out.items():
-        if k >= n:
-            log.warning(
-                "%s: the header counts %d sonar channel(s) but ChanInfo %d describes the %s "
-                "side: reading it too",
-                path, n, k, side,
-            )  # fmt: skip
-    return dict(sorted(out.items()))
+    return sets
 
 
 def _channel_khz(info: Any) -> float:

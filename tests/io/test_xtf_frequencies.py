@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import logging
 import math
 from dataclasses import replace
@@ -13,7 +14,7 @@ from sonar_raster.cli.app import main
 from sonar_raster.errors import SonarRasterError
 from sonar_raster.image import SonarImage
 from sonar_raster.io.images import read_exr
-from sonar_raster.io.xtf import XtfReader, read_xtf, read_xtf_track, write_xtf
+from sonar_raster.io.xtf import XtfReader, read_xtf, read_xtf_track, write_xtf, xtf_frequencies
 from sonar_raster.sonar import Sonar
 from sonar_raster.trajectory import Trajectory
 
@@ -295,3 +296,31 @@ def test_two_presets_stream_a_long_track_block_by_block(tmp_path):
     assert attrs["sonar:frequency_hz"] == pytest.approx(900e3)
     for side, values in exr.items():
         np.testing.assert_array_equal(values, high.sides[side])
+
+
+@pytest.mark.parametrize("at", [["--at", "60,8"], []])
+def test_insert_into_every_pair_puts_one_object_in_each(dual_line, tmp_path, capsys, at):
+    """``--xtf-frequency all``: the object in both pairs at one ping and ground range (a drawn
+    place chosen where the shorter swath holds it), each pair's own labels, one XTF."""
+    path, low, high = dual_line
+    assert xtf_frequencies(path) == [445e3, 900e3]
+    argv = ["insert", str(path), "-o", str(tmp_path / "out"), "--object", "box", *at]
+    assert main([*argv, "--xtf-frequency", "all", "--seed", "5"]) == 0
+    assert "into 2 channel pairs: 445, 900 kHz" in capsys.readouterr().out
+    names = {p.name for p in tmp_path.iterdir()}
+    for khz in ("445", "900"):
+        assert {f"out.{khz}kHz.{e}" for e in ("png", "txt", "coco.json", "objects.json")} <= names
+    assert "out.xtf" in names and "out.png" not in names
+    places, rows = [], []
+    for band, khz in ((low, "445"), (high, "900")):
+        image, _ = read_xtf(tmp_path / "out.xtf", frequency=band.sonar.frequency_hz)
+        np.testing.assert_array_equal(image.sides["port"], band.sides["port"])
+        differs = np.abs(image.sides["starboard"] - band.sides["starboard"]).max(axis=1) > 0
+        assert 0 < differs.sum() < 120
+        rows.append(differs)
+        doc = json.loads((tmp_path / f"out.{khz}kHz.objects.json").read_text())
+        places.append([(o["ping"], o["ground_range_m"]) for o in doc["objects"]])
+    assert places[0] == places[1] and len(places[0]) == 1
+    ping, ground = places[0][0]
+    assert rows[0][ping] and rows[1][ping]  # the object's own ping, in both pairs
+    assert ground < 9.0  # inside the 900 kHz swath (15 m of slant range at 12 m)
