@@ -877,7 +877,7 @@ def _render_survey(args: argparse.Namespace, runs: list[tuple], outputs: list[Pa
     """
     from ..rendering.survey import SurveyBand, render_bands
 
-    xtf = next((p for p in outputs if p.suffix.lower() == ".xtf"), None)
+    xtfs = [p for p in outputs if p.suffix.lower() == ".xtf"]
     images = [p for p in outputs if p.suffix.lower() != ".xtf"]
     bands = []
     for name, one, setup, effects in runs:
@@ -892,7 +892,7 @@ def _render_survey(args: argparse.Namespace, runs: list[tuple], outputs: list[Pa
         setup.scene,
         bands,
         setup.trajectory,
-        xtf,
+        xtfs,
         chunk_pings=args.chunk_pings or 512,
         backend=args.gl,
         settings=_settings(args),

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import math
 import os
+import shutil
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -172,14 +174,14 @@ def render_survey(
     for path in paths:
         if path.suffix.lower() not in (*sio.SUPPORTED, ".xtf"):
             raise SonarRasterError(f"cannot write {path}: use .exr, .png or .xtf")
-    xtf = next((p for p in paths if p.suffix.lower() == ".xtf"), None)
+    xtfs = [p for p in paths if p.suffix.lower() == ".xtf"]
     images = tuple(p for p in paths if p.suffix.lower() != ".xtf")
     band = SurveyBand(sonar, images, effects, seed, dict(metadata or {}), display)
     written, summaries = render_bands(
         scene,
         [band],
         trajectory,
-        xtf,
+        xtfs,
         chunk_pings=chunk_pings,
         backend=backend,
         settings=settings,
@@ -194,7 +196,7 @@ def render_bands(
     scene: Scene,
     bands: list[SurveyBand],
     trajectory: Trajectory,
-    xtf: str | os.PathLike | None = None,
+    xtf: str | os.PathLike | Sequence[str | os.PathLike] | None = None,
     *,
     chunk_pings: int = 512,
     backend: str | None = None,
@@ -216,8 +218,8 @@ def render_bands(
         What to render.
     bands : list of SurveyBand
         The sonars, their effects and their image files.
-    xtf : path, optional
-        The XTF of every band.
+    xtf : path or list of path, optional
+        The XTF of every band (several: the same file under each name).
     chunk_pings, backend, settings, bit_depth, dynamic_range_db, progress
         As for :func:`render_survey`.
 
@@ -230,20 +232,21 @@ def render_bands(
     """
     if not bands:
         raise SonarRasterError("no sonar to render")
-    xtf_final = Path(xtf) if xtf is not None else None
-    if xtf_final is not None and xtf_final.suffix.lower() != ".xtf":
-        raise SonarRasterError(f"cannot write {xtf_final} as XTF: its name must end in .xtf")
+    named = [] if xtf is None else [xtf] if isinstance(xtf, (str, os.PathLike)) else list(xtf)
+    xtfs = [Path(p) for p in named]
+    for path in xtfs:
+        if path.suffix.lower() != ".xtf":
+            raise SonarRasterError(f"cannot write {path} as XTF: its name must end in .xtf")
+        check_writable(path)
     for band in bands:
         for path in band.outputs:
             if path.suffix.lower() not in sio.SUPPORTED:
                 raise SonarRasterError(f"cannot write {path}: use .exr, .png or .xtf")
             check_writable(path)
             check_writable(path.with_suffix(".json"))
-    if xtf_final is not None:
-        check_writable(xtf_final)
     if bit_depth not in (8, 16):
         raise SonarRasterError(f"PNG bit depth must be 8 or 16, got {bit_depth!r}")
-    first = bands[0].outputs[0] if bands[0].outputs else xtf_final
+    first = bands[0].outputs[0] if bands[0].outputs else (xtfs[0] if xtfs else None)
     if first is None:
         raise SonarRasterError("nothing to write: give an .exr, .png or .xtf output")
     temps: list[Path] = []
@@ -274,19 +277,22 @@ def render_bands(
                     temps.append(tmp)
                     _png_from_exr(exr_tmp, tmp, header, display, mapping, bit_depth, chunk_pings)
                     jobs.append((tmp, path))
-                else:
+                elif path == exr_final:
                     jobs.append((exr_tmp, path))
+                else:  # a second EXR name: a copy
+                    jobs.append((_copied(exr_tmp, path, temps), path))
                 sidecar = temp_name(path.with_suffix(".json"))
                 temps.append(sidecar)
                 doc = sio.sidecar_document(header, mapping)
                 doc["shape"] = [trajectory.n_pings, band.sonar.n_bins]  # type: ignore[index]
                 write_json(sidecar, doc)
                 jobs.append((sidecar, path.with_suffix(".json")))
-        if xtf_final is not None:
-            xtf_tmp = temp_name(xtf_final)
+        if xtfs:
+            xtf_tmp = temp_name(xtfs[0])
             temps.append(xtf_tmp)
             _xtf_from_exrs(xtf_tmp, exrs, bands, trajectory, scene.ground_z, chunk_pings)
-            jobs.append((xtf_tmp, xtf_final))
+            jobs.append((xtf_tmp, xtfs[0]))
+            jobs += [(_copied(xtf_tmp, path, temps), path) for path in xtfs[1:]]
         install(jobs)  # every output replaced, or none
     except OSError as exc:
         raise SonarRasterError(f"cannot write {first}: {exc.strerror or exc}") from None
@@ -359,8 +365,8 @@ def _levels(
     shown, _ = sio.display_sides(header, stats, flat)
     two = {side: values[:2] for side, values in stats.items()}
     _, geometry = sio.display_sides(header, two, display)
-    mapping = sio.display_levels(header, SonarImage(shown, header.sonar).display(), display, dr,
-                                 geometry)  # fmt: skip
+    both = SonarImage(shown, header.sonar).display()
+    mapping = sio.display_levels(header, both, display, dr, geometry)
     mapping["chosen_from"] = f"{len(next(iter(stats.values())))} evenly spaced pings"
     return mapping
 
@@ -376,8 +382,9 @@ def _xtf_from_exrs(
     """Write the XTF of every band from their finished EXRs, ``block`` pings at a time."""
     from ..io.xtf import XtfWriter
 
-    inputs = [_open_exr(path) for path in exrs]
+    inputs: list[Any] = []
     try:
+        inputs += [_open_exr(path) for path in exrs]
         with open(tmp, "xb") as fh:
             writer = XtfWriter(fh)
             for y0 in range(0, trajectory.n_pings, block):
@@ -391,6 +398,14 @@ def _xtf_from_exrs(
     finally:
         for inp in inputs:
             inp.close()
+
+
+def _copied(tmp: Path, final: Path, temps: list[Path]) -> Path:
+    """A copy of the finished temporary ``tmp`` under a temporary name of ``final``."""
+    copy = temp_name(final)
+    temps.append(copy)
+    shutil.copyfile(tmp, copy)
+    return copy
 
 
 def _open_exr(path: Path) -> Any:

@@ -167,3 +167,15 @@ def test_a_streamed_render_has_the_whole_renders_effects(tmp_path):
         for lo in range(300, 1000, 175):  # 7 m bands of the seabed
             ratio = b[side][:, lo : lo + 175].mean() / a[side][:, lo : lo + 175].mean()
             assert ratio == pytest.approx(1.0, abs=0.03), (side, lo)
+
+
+def test_a_streamed_render_writes_every_name_it_is_given(tmp_path):
+    """Two EXR and two XTF names on a streamed render: each written whole (a copy)."""
+    names = ["a.exr", "b.exr", "a.xtf", "b.xtf"]
+    outputs = [arg for name in names for arg in ("-o", str(tmp_path / name))]
+    argv = ["render", "default", "--pings", "20", "--chunk-pings", "8", "-q", "--ideal"]
+    assert main([*argv, *outputs]) == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*names, "a.json", "b.json"])
+    for kind in ("exr", "xtf"):
+        a, b = (tmp_path / f"{n}.{kind}" for n in "ab")
+        assert a.stat().st_size > 1000 and a.read_bytes() == b.read_bytes()
