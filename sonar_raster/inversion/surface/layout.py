@@ -237,6 +237,7 @@ class View:
     nadir: sparse.csr_matrix  # (pings, nz): Z at each ping's nadir
     points: tuple[np.ndarray, np.ndarray]  # frame (y, X) of each cell, (pings, cells) each
     anchor_bin: float  # the bin the first-return anchor's σ counts in (Problem.anchor_std)
+    anchor_looks: float = 1.0  # the images' own looks, by whose root that σ shrinks
 
     @property
     def shape(self) -> tuple[int, int]:

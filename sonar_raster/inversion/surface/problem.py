@@ -76,9 +76,12 @@ BEAM_WEIGHT = 10.0
 #: 0.1 dB, a calibration's own spread; its level stays free per side).
 CALIBRATED_BEAM_STD = 0.02
 #: Standard deviation of the first-return altitude per ping, in range bins (the images' own at
-#: the finest level fitted, pooled above it): the bottom tracker's own error on a single look
-#: (a phase bias of up to a third of a bin); its reading of a rough seabed's crests is taken off
-#: first (``solve.CREST_OFFSET``).
+#: the finest level fitted, pooled above it) on a single look: the bottom tracker's own error
+#: there (a phase bias of up to a third of a bin); its reading of a rough seabed's crests is
+#: taken off first (``solve.CREST_OFFSET``). With L looks it is this over √L (capped at
+#: ``solve.MAX_LOOKS``), as the data's weight grows with L: on clean images held at a quarter
+#: bin the data near the nadir outweighed it and kept sand waves 6.7 cm high (clean sand 0.733;
+#: 0.350 with σ 0.05 bin, docs/notes/2026-11-29-anchor-looks.md).
 ANCHOR_BINS = 0.25
 #: Standard deviation of the relief about the flat seabed at the first return, metres (None:
 #: no such prior). The image hardly fixes a broad bending of Z that the beam can absorb.
@@ -452,8 +455,8 @@ class Problem:
         return out
 
     def anchor_std(self, view: View) -> float:
-        """Standard deviation of the first-return altitude, metres."""
-        return ANCHOR_BINS * view.anchor_bin
+        """Standard deviation of the first-return altitude per ping, metres."""
+        return ANCHOR_BINS * view.anchor_bin / math.sqrt(max(view.anchor_looks, 1.0))
 
     def _anchor(self, zc: np.ndarray) -> tuple[float, np.ndarray]:
         """Each line's nadir at its first-return altitude (less its crests) below the transducer."""

@@ -523,6 +523,7 @@ def _level(
                     # the images' own bin at the finest level fitted (their tracker's error),
                     # pooled like the rest above it
                     anchor_bin=line.range_bin * f / finest,
+                    anchor_looks=look[side],  # the image's own, before pooling
                 )
             )
     if flat is None:
