@@ -12,7 +12,9 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "tools"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_bathymetry as bench  # noqa: E402
+from levels import level_errors  # noqa: E402
 
 from sonar_raster.inversion.surface import solve  # noqa: E402
 
@@ -40,13 +42,5 @@ def traced(problem, p, shifts=None):
 
 solve._track_model = traced
 field, tracks, images = bench.render("sand", 200, float(sys.argv[1]), 1)
-fit = bench.fit(tracks, images, True)[0]
-keep = (fit.x > 1.0) & (fit.x < fit.x[-1] - 2.0)
-t, f = [], []
-for side in fit.elevation:
-    where = fit.position[side][:, keep]
-    t.append((field.height_at(where[..., 0], where[..., 1]) - bench.ALT).ravel())
-    f.append(fit.elevation[side][:, keep].ravel())
-t, f = np.concatenate(t), np.concatenate(f)
-e = f - t
+e, t = level_errors(field, bench.fit(tracks, images, True)[0])
 print(f"score {np.sqrt(np.mean(e**2)) / t.std():.3f}, level {100 * e.mean():+.2f} cm")
