@@ -24,16 +24,16 @@ from .config import DatasetConfig, ObjectSpec
 
 __all__ = ["draw_background_sample", "window"]
 
-_RECORDINGS: dict[tuple[str, str], Any] = {}
+_RECORDINGS: dict[tuple[str, str, float | str | None], Any] = {}
 
 
-def _recording(path: str, samples: str) -> Any:
+def _recording(path: str, samples: str, frequency: float | str | None = None) -> Any:
     """The recording of ``path``, read and bottom-tracked once per process."""
     from ..insert.recording import read_recording
 
-    key = (path, samples)
+    key = (path, samples, frequency)
     if key not in _RECORDINGS:
-        _RECORDINGS[key] = read_recording(path, samples=samples)
+        _RECORDINGS[key] = read_recording(path, samples=samples, frequency=frequency)
     return _RECORDINGS[key]
 
 
@@ -108,7 +108,7 @@ def draw_background_sample(config: DatasetConfig, seed: int, index: int, rendere
         raise SonarRasterError("the config has no [background] table")
     rng = np.random.default_rng([int(seed), int(index)])
     path = spec.recordings[int(rng.integers(len(spec.recordings)))]
-    rec = _recording(path, spec.samples)
+    rec = _recording(path, spec.samples, spec.frequency)
     pings = rec.shape[0]
     length = min(config.pings, pings)
     start = int(rng.integers(0, pings - length + 1))

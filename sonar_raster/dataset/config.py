@@ -194,11 +194,15 @@ class BackgroundSpec:
         What their samples are: "auto", "amplitude" or "intensity".
     seabed_reflectivity : float
         Reflectivity the recordings' seabed is taken to have.
+    frequency : float or {"low", "high"}, optional
+        Of dual-frequency recordings, the channel pair read (Hz, or "low" / "high"); None: the
+        first.
     """
 
     recordings: tuple[str, ...]
     samples: str = "auto"
     seabed_reflectivity: float = 0.3
+    frequency: float | str | None = None
 
 
 def _background(table: dict | None, base: Path, where: str) -> BackgroundSpec | None:
@@ -217,6 +221,7 @@ def _background(table: dict | None, base: Path, where: str) -> BackgroundSpec | 
     if samples not in ("auto", "amplitude", "intensity"):
         raise SonarRasterError(f"{where}: 'samples' must be auto, amplitude or intensity")
     refl = _number(table.pop("seabed_reflectivity", 0.3), f"{where} 'seabed_reflectivity'")
+    frequency = _frequency(table.pop("frequency", None), where)
     _no_leftovers(table, where)
     if refl <= 0:
         raise SonarRasterError(f"{where}: 'seabed_reflectivity' must be > 0")
@@ -225,8 +230,25 @@ def _background(table: dict | None, base: Path, where: str) -> BackgroundSpec | 
         path = (base / f).resolve()
         if path.suffix.lower() != ".xtf" or not path.is_file():
             raise SonarRasterError(f"{where}: recording {f} is not an .xtf file that exists")
+        if frequency is not None:
+            from ..io.xtf import XtfReader
+
+            XtfReader(path, frequency).close()  # a pair the file lacks: one line naming its own
         paths.append(str(path))
-    return BackgroundSpec(tuple(paths), samples, refl)
+    return BackgroundSpec(tuple(paths), samples, refl, frequency)
+
+
+def _frequency(value: Any, where: str) -> float | str | None:
+    """``[background] frequency``: "low", "high" or kHz, as Hz; None when not given."""
+    if value is None or value in ("low", "high"):
+        return value
+    khz = value if isinstance(value, (int, float)) and not isinstance(value, bool) else math.nan
+    if not (math.isfinite(khz) and khz > 0):
+        raise SonarRasterError(
+            f'{where}: \'frequency\' must be "low", "high" or the channels\' frequency in kHz, '
+            f"e.g. 900; got {value!r}"
+        )
+    return 1e3 * float(khz)
 
 
 @dataclass(frozen=True)

@@ -93,3 +93,51 @@ def test_bad_background_tables(tmp_path):
     path.write_text("[dataset]\ncount = 1\n[background]\nrecordings = []\n")
     with pytest.raises(SonarRasterError, match="recordings"):
         load_dataset_config(path)
+
+
+DUAL = """
+[dataset]
+name = "dual"
+count = 1
+seed = 3
+pings = 40
+sides = ["starboard"]
+
+[background]
+recordings = ["dual.xtf"]
+{frequency}
+
+[[objects]]
+primitive = "box"
+count = 1
+size = [1.0, 0.6, 0.5]
+
+[output]
+formats = ["png"]
+"""
+
+
+def test_a_dual_frequency_background_reads_the_pair_asked_for(tmp_path, capsys):
+    """``[background] frequency``: the window comes from that pair (its own bins); a pair the
+    file lacks is one error when the config is read, naming the file's."""
+    from sonar_raster.cli.app import main
+    from sonar_raster.io.images import read_pixels
+
+    argv = ["render", "default", "--pings", "60", "--seed", "1", "-q"]
+    sensor = ["--sensor", "klein-3900-445,klein-3900-900", "-o", str(tmp_path / "dual.xtf")]
+    assert main([*argv, *sensor]) == 0
+    widths = {}
+    for choice, bins in (('"high"', 5333), ("445", 4000)):
+        config = tmp_path / "dual.toml"
+        config.write_text(DUAL.format(frequency=f"frequency = {choice}"))
+        out = tmp_path / f"out{bins}"
+        assert generate_dataset(load_dataset_config(config), out, count=1).failed == []
+        (image,) = sorted((out / "images").glob("*.png"))
+        widths[choice] = read_pixels(image)[0].shape[1]
+        assert widths[choice] == bins  # one side, the pair's own bins
+    config.write_text(DUAL.format(frequency="frequency = 600"))
+    with pytest.raises(SonarRasterError, match="445 kHz, 900 kHz"):
+        load_dataset_config(config)
+    config.write_text(DUAL.format(frequency='frequency = "middle"'))
+    with pytest.raises(SonarRasterError, match="'frequency' must be"):
+        load_dataset_config(config)
