@@ -388,30 +388,50 @@ def placement_lines(setup: Any) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run ``sonar-raster render``."""
+    """Run ``sonar-raster render``: one sensor, or several over one track (``--sensor A,B``).
+
+    Several presets render one image each; a PNG or EXR output is written once per preset, its
+    name before the suffix (``out.png`` → ``out.klein-3900-445.png``), and their channels share
+    the XTF. The first preset's effects take ``--seed``, the others seeds spawned from it, so
+    the first image equals a render of that preset alone. Every check runs before any render.
+    """
+    import copy
+
     sensors = _sensor_list(args)
-    if len(sensors) > 1:
-        return _run_sensors(args, sensors)
+    several = len(sensors) > 1
+    if several:
+        _check_several(args)
     outputs = _check_outputs(args.output)
-    _check_long_track(args, outputs)  # a long --pings is sized before its track is made
-    setup = load_setup(args)
-    setup = apply_sensor_option(args, setup)  # issue 16: --sensor NAME sets the sonar
+    runs: list[tuple] = []
+    for name, seed in zip(sensors, _seeds(args.seed, len(sensors)), strict=True):
+        one = copy.copy(args)
+        one.sensor, one.seed = name, seed
+        _check_long_track(one, outputs)  # a long --pings is sized before its track is made
+        setup = apply_sensor_option(one, load_setup(one))  # issue 16: --sensor sets the sonar
+        if not args.quiet and not runs:
+            for line in placement_lines(setup):
+                print(line)
+        _check_in_range(setup)
+        effects = effects_from_args(one, setup.effects)  # bad options fail before the render
+        runs.append((name if several else None, one, setup, effects))
+    streamed = any(_streamed(one, setup) for _, one, setup, _ in runs)  # one XTF: all or none
+    for _, one, setup, _ in runs:
+        _check_size(one, setup, streamed, outputs)
+    if streamed:
+        return _render_survey(args, runs, outputs)
+    renders = []
+    for name, one, setup, effects in runs:
+        image = _rendered(one, setup, effects)
+        renders.append((name, one, setup, image))
+        if not args.quiet:
+            pings, bins = image.shape
+            what = setup.source if name is None else f"{setup.source} as {name}"
+            print(
+                f"rendered {what}: {setup.scene.n_triangles} triangles, {pings} pings x "
+                f"{bins} bins per side ({', '.join(image.sides)})"
+            )
+    written = _write(args, renders, outputs)
     if not args.quiet:
-        for line in placement_lines(setup):
-            print(line)
-    _check_in_range(setup)
-    effects = effects_from_args(args, setup.effects)  # bad options fail before the render
-    _check_size(args, setup, _streamed(args, setup), outputs)
-    if _streamed(args, setup):
-        return _render_survey(args, [(None, args, setup, effects)], outputs)
-    image = _rendered(args, setup, effects)
-    written = _write(args, [(None, args, setup, image)], outputs)
-    if not args.quiet:
-        pings, bins = image.shape
-        print(
-            f"rendered {setup.source}: {setup.scene.n_triangles} triangles, {pings} pings x "
-            f"{bins} bins per side ({', '.join(image.sides)})"
-        )
         for path in dict.fromkeys(written):
             print(f"wrote {path}")
     return 0
@@ -444,17 +464,8 @@ def _sensor_list(args: argparse.Namespace) -> list[str | None]:
     return names
 
 
-def _run_sensors(args: argparse.Namespace, sensors: list[str | None]) -> int:
-    """Several presets over one track: one image each, their channels in one XTF.
-
-    A PNG or EXR output is written once per preset, its name before the suffix
-    (``out.png`` → ``out.klein-3900-445.png``). The first preset's effects take ``--seed``,
-    the others seeds spawned from it, so the first image equals a render of that preset alone.
-    """
-    import copy
-
-    import numpy as np
-
+def _check_several(args: argparse.Namespace) -> None:
+    """Options that one preset of several cannot share: each has its own."""
     for option in ("frequency", "tilt", "beamwidth"):
         if getattr(args, option, None) is not None:
             raise SonarRasterError(
@@ -463,39 +474,16 @@ def _run_sensors(args: argparse.Namespace, sensors: list[str | None]) -> int:
             )
     if getattr(args, "ideal", False):
         raise SonarRasterError("--ideal takes one --sensor preset at a time")
-    outputs = _check_outputs(args.output)
-    seeds: list[int | None] = [args.seed] * len(sensors)
-    if args.seed is not None:
-        children = np.random.SeedSequence(args.seed).spawn(len(sensors))
-        seeds = [args.seed] + [int(c.generate_state(1)[0]) for c in children[1:]]
-    runs = []
-    for name, seed in zip(sensors, seeds, strict=True):
-        one = copy.copy(args)
-        one.sensor, one.seed = name, seed
-        _check_long_track(one, outputs)  # a long --pings is sized before its track is made
-        setup = apply_sensor_option(one, load_setup(one))
-        _check_in_range(setup)
-        runs.append((name, one, setup, effects_from_args(one, setup.effects)))
-    streamed = any(_streamed(one, setup) for _, one, setup, _ in runs)  # one XTF: all or none
-    for _, one, setup, _ in runs:
-        _check_size(one, setup, streamed, outputs)
-    if not args.quiet:
-        for line in placement_lines(runs[0][2]):
-            print(line)
-    if streamed:
-        return _render_survey(args, runs, outputs)
-    renders = []
-    for name, one, setup, effects in runs:
-        image = _rendered(one, setup, effects)
-        renders.append((name, one, setup, image))
-        if not args.quiet:
-            pings, bins = image.shape
-            print(f"rendered {setup.source} as {name}: {pings} pings x {bins} bins per side")
-    written = _write(args, renders, outputs)
-    if not args.quiet:
-        for path in dict.fromkeys(written):
-            print(f"wrote {path}")
-    return 0
+
+
+def _seeds(seed: int | None, count: int) -> list[int | None]:
+    """``--seed`` for the first preset, seeds spawned from it for the others (None: none)."""
+    if seed is None or count == 1:
+        return [seed] * count
+    import numpy as np
+
+    children = np.random.SeedSequence(seed).spawn(count)
+    return [seed, *(int(c.generate_state(1)[0]) for c in children[1:])]
 
 
 def _warn_blank(image: Any, effects: Any) -> None:
@@ -815,7 +803,7 @@ def _write(args: argparse.Namespace, renders: list[tuple], outputs: list[Path]) 
     """Write every output in one all-or-nothing commit: all files replaced, or none.
 
     ``renders`` are ``(preset, args, setup, image)``: one with preset None, or several presets
-    (:func:`_run_sensors`), whose images share an XTF and get a PNG or EXR each, named
+    (:func:`run`), whose images share an XTF and get a PNG or EXR each, named
     ``out.PRESET.png``.
     """
     from ..io.commit import commit

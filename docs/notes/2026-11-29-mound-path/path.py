@@ -18,15 +18,17 @@ the true start's E.
 
 from __future__ import annotations
 
-import math
+import functools
 import sys
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "tools"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "2026-11-29-objective-vs-truth"))
 
 import bench_bathymetry as bench  # noqa: E402
+from true_start import true_start  # noqa: E402
 
 import sonar_raster.inversion.surface.problem as P  # noqa: E402
 import sonar_raster.inversion.surface.solve as S  # noqa: E402
@@ -48,21 +50,9 @@ def main() -> None:
         captured["problem"], captured["p"] = full, params.copy()
         return results(full, params, *args, **kwargs)
 
-    def true_start(problem):
-        p = np.zeros(problem.size)
-        ky, kx = problem.grid.knots("z")
-        yy, xx = np.meshgrid(ky, kx, indexing="ij")
-        p[: problem.nz] = (field.height_at(xx, yy) - bench.ALT).ravel()
-        for side in problem.grid.sides:
-            data = np.concatenate([v.image[v.mask] for v in problem.views if v.side == side])
-            p[problem.phi_slice(side)] = math.log(max(float(np.mean(data)), 1e-30))
-        free = np.zeros(problem.size, bool)
-        free[problem.nz + problem.nr :] = True
-        p[:], _, _ = S._minimise(problem, p, 60, free)
-        return p
-
     S._results = keep
-    for tag, start in (("flat", flat_start), ("true", true_start)):
+    truth = functools.partial(true_start, field=field)
+    for tag, start in (("flat", flat_start), ("true", truth)):
         S._start = start
         S.SHADOW_START_BINS = None if tag == "true" else S.SHADOW_START_BINS
         fits = bench.fit(tracks, images, True, beam=profiles)
