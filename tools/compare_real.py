@@ -27,7 +27,8 @@ It also prints the real file's own port-vs-starboard mean-profile difference ove
 pings: the floor a left-right symmetric sensor over a uniform seabed cannot go below.
 
 Usage: ``python tools/compare_real.py [--xtf PATH] [--level] [--downsample off|max|mean]
-[--k-shape NU] [--law lambert] [--along-beam-deg 0.5] [--png out.png] [--json out.json]``.
+[--k-shape NU] [--law lambert] [--sediment 'fine sand'] [--along-beam-deg 0.5] [--png out.png]
+[--json out.json]``.
 """
 
 from __future__ import annotations
@@ -207,9 +208,9 @@ def simulate(real: RealPass, altitudes: np.ndarray, args: argparse.Namespace, be
     field = Heightfield(np.zeros((2, 2)), -half, -5.0, 2.0 * half, length + 10.0)  # a plane
     if args.micro_relief == "on":  # the sand's own roughness spectrum, at the image's scales
         cell = args.relief_cell or MICRO_RESOLUTION_BINS * real.range_bin
-        field = micro_relief(field, "sand", resolution=cell, seed=args.seed)
-    law = material_index("sand") if args.law == "apl" else 0
-    seabed = replace(field.mesh(material_reflectivity("sand")), is_seabed=True, law=law)
+        field = micro_relief(field, args.sediment, resolution=cell, seed=args.seed)
+    law = material_index(args.sediment) if args.law == "apl" else 0
+    seabed = replace(field.mesh(material_reflectivity(args.sediment)), is_seabed=True, law=law)
     sonar = p.sonar(real.max_range, real.range_bin)
     if beam is not None:
         sonar = replace(sonar, beam=BeamPattern.gaussian(beam), tilt=math.radians(tilt))
@@ -460,6 +461,12 @@ def main(argv: list[str] | None = None) -> int:
         choices=("apl", "lambert"),
         default="apl",
         help="seabed scattering law: the APL-UW sand law (default) or Lambert",
+    )
+    ap.add_argument(
+        "--sediment",
+        default="sand",
+        help="the seabed's sediment: its APL-UW law, roughness and reflectivity (a class or a "
+        "TR 9407 Table 2 name, e.g. 'fine sand'; default sand, i.e. medium sand)",
     )
     ap.add_argument(
         "--micro-relief",
