@@ -35,7 +35,7 @@ Seabeds: sand waves (0.2 m amplitude, 4 m wavelength, crests at 40° to the trac
 box (6 m × 2.5 m × 1.5 m, its long side 30° off the track).
 
 Usage: ``python tools/bench_independent.py [--seabeds sand,mound,...] [--looks 1,0]
-[--spacing] [--method auto|surface|profiles] [--out bench_out]``.
+[--spacing] [--method auto|surface|profiles] [--out bench_out] [--replot JSON]``.
 """
 
 from __future__ import annotations
@@ -191,7 +191,11 @@ def main() -> None:
     ap.add_argument("--spacing", action="store_true", help="also give --ping-spacing 0.1")
     ap.add_argument("--method", default="auto", help="invert's --method (default auto)")
     ap.add_argument("--plot", type=Path, default=DOCS / "bathymetry_independent.png")
+    ap.add_argument("--replot", type=Path, default=None, help="plot a JSON this script wrote")
     args = ap.parse_args()
+    if args.replot is not None:
+        plot(json.loads(args.replot.read_text()), args.plot)
+        return
     rows = []
     print("seabed   looks  method    fit    flat   corr  1σ    level cm  s")
     for name in args.seabeds.split(","):
@@ -209,6 +213,12 @@ def main() -> None:
             )
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "bench_independent.json").write_text(json.dumps(rows, indent=1))
+    plot(rows, args.plot)
+    print(f"wrote {args.out / 'bench_independent.json'} and {args.plot}")
+
+
+def plot(rows: list[dict], path: Path) -> None:
+    """Bars of each seabed's fit per looks, the flat baseline as a dash, the method on top."""
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 3.5))
     names = list(dict.fromkeys(r["seabed"] for r in rows))
@@ -216,15 +226,17 @@ def main() -> None:
         got = {r["seabed"]: r for r in rows if r["looks"] == looks}
         where = np.arange(len(names)) + 0.2 * k
         label = "single look" if looks == 1 else ("clean" if looks == 0 else f"{looks:g} looks")
-        ax.bar(where, [got[n]["fit"] for n in names], 0.2, label=f"fit, {label}")
+        heights = [got[n]["fit"] for n in names]
+        ax.bar(where, heights, 0.2, label=f"fit, {label}")
         ax.plot(where, [got[n]["flat"] for n in names], "k_", markersize=14)
+        for x, h, n in zip(where, heights, names, strict=True):
+            ax.text(x, h + 0.02, got[n]["method"][0], ha="center", fontsize=7)
     ax.axhline(0.6, color="grey", lw=0.8, ls="--")
     ax.set_xticks(np.arange(len(names)) + 0.1, names)
     ax.set_ylabel("Z RMSE / relief std (—: flat)")
-    ax.set_title("Another forward model's images, `sonar-raster invert` defaults")
+    ax.set_title("Another forward model's images, `sonar-raster invert` (s: surface, p: profiles)")
     ax.legend(fontsize=8)
-    save_figure(fig, args.plot)
-    print(f"wrote {args.out / 'bench_independent.json'} and {args.plot}")
+    save_figure(fig, path)
 
 
 if __name__ == "__main__":
