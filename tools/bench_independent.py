@@ -189,7 +189,12 @@ def main() -> None:
     ap.add_argument("--seabeds", default=",".join(SEABEDS))
     ap.add_argument("--looks", default="1,0", help="comma-separated; 0 = clean")
     ap.add_argument("--spacing", action="store_true", help="also give --ping-spacing 0.1")
-    ap.add_argument("--method", default="auto", help="invert's --method (default auto)")
+    ap.add_argument(
+        "--method",
+        choices=("auto", "surface", "profiles"),
+        default="auto",
+        help="invert's --method (default auto)",
+    )
     ap.add_argument("--plot", type=Path, default=DOCS / "bathymetry_independent.png")
     ap.add_argument("--replot", type=Path, default=None, help="plot a JSON this script wrote")
     args = ap.parse_args()

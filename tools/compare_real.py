@@ -1,11 +1,11 @@
 """Compare a simulated side-scan image with the real XTF pass, with the numbers an engineer checks.
 
 Reads ``../shared/data/xtf/scotsman-iver2.xtf`` (Marine Sonic HDS, 600 kHz, Iver2 AUV) with
-pyxtf directly, then renders a flat sandy seabed at the same slant range, bin size and ping
-spacing, along a track whose altitude follows the real first bottom return ping by ping (the
-vehicle dives through the file, from about 11 m to 3 m altitude, pitched 20° nose down for half
-of it: each ping is pitched and rolled as the file records, ``--level`` for level fans), applies
-the sensor effects,
+pyxtf directly, then renders a flat seabed of medium sand (``--sediment``) at the same slant
+range, bin size and ping spacing, along a track whose altitude follows the real first bottom
+return ping by ping (the vehicle dives through the file, from about 11 m to 3 m altitude,
+pitched 20° nose down for half of it: each ping is pitched and rolled as the file records,
+``--level`` for level fans), applies the sensor effects,
 and prints, per side:
 
 * mean intensity against slant range (real and simulated, each normalised to its own mean over
@@ -191,9 +191,9 @@ def wreck_hull(real: RealPass, altitudes: np.ndarray):
 
 
 def simulate(real: RealPass, altitudes: np.ndarray, args: argparse.Namespace, beam, tilt):
-    """Render a flat sandy seabed (and a wreck-like hull) along the real altitudes with the
-    Marine Sonic preset's sonar at the file's range and bins, then apply the preset's effects
-    (``--along-beam-deg``/``--range-resolution``/``--noise-db`` replace its figures)."""
+    """Render a flat seabed of ``--sediment`` (and a wreck-like hull) along the real altitudes
+    with the Marine Sonic preset's sonar at the file's range and bins, then apply the preset's
+    effects (``--along-beam-deg``/``--range-resolution``/``--noise-db`` replace its figures)."""
     from sonar_raster import Trajectory, apply_effects, build_scene
     from sonar_raster.effects.presets import preset
     from sonar_raster.rendering.gl.raster import render_raster
@@ -439,6 +439,18 @@ def side_asymmetry(real: RealPass, window: slice, n_bands: int) -> list[float]:
     ]
 
 
+def _sediment_name(name: str) -> str:
+    """``--sediment``'s value if the sediment table knows it (argparse's one-line error if not)."""
+    from sonar_raster.errors import SonarRasterError
+    from sonar_raster.scenes.sediments import sediment
+
+    try:
+        sediment(name)
+    except SonarRasterError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return name
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = parser(__doc__)
     ap.add_argument("--xtf", type=Path, default=DEFAULT_XTF)
@@ -464,6 +476,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument(
         "--sediment",
+        type=_sediment_name,
         default="sand",
         help="the seabed's sediment: its APL-UW law, roughness and reflectivity (a class or a "
         "TR 9407 Table 2 name, e.g. 'fine sand'; default sand, i.e. medium sand)",
