@@ -72,7 +72,9 @@ def cli_positive(kind: type) -> Callable[[str], Any]:
             value = kind(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-        if not (0 < value < float("inf")):
+        if not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
+        if value <= 0:
             raise argparse.ArgumentTypeError(f"must be > 0, got {text}")
         return value
 

@@ -11,8 +11,10 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import difflib
 import io
 import logging
+import os
 import signal
 import sys
 import threading
@@ -24,6 +26,9 @@ from ..errors import InputWarning, SonarRasterError
 from . import dataset, doctor, insert, invert, render, scenes, sensors, track
 
 EXIT_BAD_INPUT = 2
+#: Exit status when the reader of stdout went away (``sonar-raster sensors --json | head``):
+#: 128 + SIGPIPE, as a command killed by the signal reports it.
+EXIT_BROKEN_PIPE = 141
 
 #: The commands in the order ``--help`` lists them.
 COMMANDS = {
@@ -63,7 +68,30 @@ def _parser() -> argparse.ArgumentParser:
                 "-q", "--quiet", action="store_true", help="print nothing but warnings and errors"
             )
             command_parser.set_defaults(_silence_stdout=True)
+    parser.set_defaults(_commands=dict(sub.choices))
     return parser
+
+
+def _parse(argv: list[str] | None) -> argparse.Namespace:
+    """The parsed command line; an unknown option is refused by its command's parser.
+
+    argparse leaves unknown options to the top-level parser, whose error would point to
+    ``sonar-raster --help``; here the command's own parser refuses them (``see 'sonar-raster
+    render --help'``) and names the nearest option for a misspelt one.
+    """
+    args, extra = _parser().parse_known_args(argv)
+    if extra:
+        command = args._commands[args.command]
+        known = [s for a in command._actions for s in a.option_strings if s.startswith("--")]
+        hints = []
+        for token in extra:
+            if token.startswith("--"):
+                close = difflib.get_close_matches(token.split("=", 1)[0], known, n=1)
+                if close:
+                    hints.append(f"{token}: did you mean {close[0]}?")
+        hint = f" ({'; '.join(hints)})" if hints else ""
+        command.error(f"unrecognized arguments: {' '.join(extra)}{hint}")
+    return args
 
 
 def _version() -> str:
@@ -96,7 +124,7 @@ def main(argv: list[str] | None = None) -> int:
     with one error line, as bad input does, except warnings about the code itself
     (deprecations).
     """
-    args = _parser().parse_args(argv)
+    args = _parse(argv)
     logging.basicConfig(level=logging.WARNING, format="sonar-raster: %(message)s")
     restore = _install_signals()
     try:
@@ -109,7 +137,15 @@ def main(argv: list[str] | None = None) -> int:
             if getattr(args, "_silence_stdout", False) and args.quiet:
                 with contextlib.redirect_stdout(io.StringIO()):
                     return COMMANDS[args.command].run(args)
-            return COMMANDS[args.command].run(args)
+            code = COMMANDS[args.command].run(args)
+            sys.stdout.flush()  # a closed pipe is found here, not at the interpreter's exit
+            return code
+    except BrokenPipeError:
+        # the reader of stdout went away: stop quietly, and send what is left in the buffer
+        # nowhere so that the interpreter's own flush at exit does not complain either
+        with contextlib.suppress(OSError, ValueError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_BROKEN_PIPE
     except SonarRasterError as exc:
         print(f"sonar-raster: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT

@@ -2,9 +2,11 @@
 
 On the bathymetry bench's one-line seabeds with speckle of 1, 4, 10 and 30 looks the per-ping
 profiles score about the first return's flat seabed, the surface fit recovers relief on sand
-waves, mounds, trenches and the box (docs/notes/2026-11-28-auto-method.md); on clean images
-each wins on half the seabeds, and the profiles cost a fraction of the memory. So a speckled
-image gets the surface fit where this machine can afford it, anything else the profiles.
+waves, mounds, trenches and the box (docs/notes/2026-11-28-auto-method.md). On clean images
+neither wins throughout (the surface five of the bench's six seabeds, two of the independent
+model's four, whose mean favours the profiles; docs/inversion.md), and the profiles cost a
+fraction of the time and memory. So a speckled image gets the surface fit where this machine
+can afford it, anything else the profiles.
 """
 
 from __future__ import annotations

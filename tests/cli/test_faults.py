@@ -619,3 +619,42 @@ def test_an_image_the_effects_leave_all_zero_warns_and_is_written(tmp_path, caps
     assert out.exists()
     assert main(["render", str(tmp_path / "s.toml"), "-o", str(out), "-q", "--ideal"]) == 0
     assert capsys.readouterr().err == ""  # the raw image has echoes
+
+
+# -- plain user mistakes a documentation audit found (2026-12-02) -------------------------------
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        (["--pingz", "3"], "unrecognized arguments: --pingz 3 (--pingz: did you mean --pings?)"),
+        (["--altitude", "inf"], "--altitude: must be a finite number > 0, got inf"),
+        (["--altitude", "nan"], "--altitude: must be a finite number > 0, got nan"),
+        (["--altitude", "-1"], "--altitude: must be > 0, got -1"),
+    ],
+    ids=["misspelt option", "infinite", "nan", "negative"],
+)
+def test_a_mistyped_option_names_the_command_and_the_nearest_option(tmp_path, capsys, options,
+                                                                     message):  # fmt: skip
+    out = tmp_path / "out.png"
+    with pytest.raises(SystemExit) as exit_:
+        main(["render", SCENE, "-o", str(out), *options])
+    assert exit_.value.code == 2
+    line = one_error_line(capsys.readouterr().err)
+    assert message in line and line.endswith("(see 'sonar-raster render --help')")
+    assert not out.exists()
+
+
+def test_a_reader_that_goes_away_ends_the_command_quietly(tmp_path):
+    """``sonar-raster sensors --json | head -c 1``: exit 141, no traceback, no complaint."""
+    code = (
+        "import os, sys\n"
+        "from sonar_raster.cli.app import main\n"
+        "read, write = os.pipe()\n"
+        "os.close(read)\n"  # the reader is gone before anything is written
+        "os.dup2(write, 1)\n"
+        "sys.exit(main(['sensors', '--json']))\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=tmp_path
+    )
+    assert done.returncode == 141, done.stderr
+    assert done.stderr == ""
