@@ -38,11 +38,15 @@ def add_parser(sub: Any) -> None:
         help="recover reflectivity, beam profile and elevation from one image side",
         description="Invert IMAGE (.npy, .exr, .tif or .png; rows = pings, columns = slant-range "
         "bins from range 0; the renderer's EXR as is or another tool's one-channel or grey "
-        "EXR, its display PNG mapped back to intensity, one --side of it) into DIR/elevation.exr, "
+        "EXR, its display PNG mapped back to intensity; the per-ping profiles take one side, "
+        "--side) into DIR/elevation.exr, "
         "reflectivity.exr, beam.exr (rows = pings, columns = ground-range cells, NaN = no "
         "estimate), ground.exr (the image in ground range at the recovered elevation), "
         "even.exr (evenly illuminated, seed Eq. 22), beam_profile.json, seabed.glb/.ply "
-        "(textured mesh), preview_az*.png (four views) and DIR/inversion.json. An XTF file "
+        "(textured mesh), preview_az*.png (four views) and DIR/inversion.json; an image of "
+        "both sides fitted as one surface (--method surface, which auto picks for a speckled "
+        "image) puts each side's into DIR/port/ and DIR/starboard/, with elevation_std.exr. "
+        "An XTF file "
         "(.xtf) is inverted on both sides (or --side) with its bottom track as altitude, into "
         "DIR/port/ and DIR/starboard/ (with PNG quick-looks elevation.png, reflectivity.png), "
         "plus DIR/bottom_track.csv, DIR/waterfall.png and, with navigation, GeoTIFFs "
@@ -187,6 +191,8 @@ def run(args: argparse.Namespace) -> int:
     """Run ``sonar-raster invert``: one side of an image, or both sides of an XTF file."""
     images = list(args.image) if isinstance(args.image, (list, tuple)) else [args.image]
     xtf = [Path(p).suffix.lower() == ".xtf" for p in images]
+    if args.beam:  # read before anything is estimated or loaded: a bad path is the first error
+        surface_beam(args.beam)
     if len(images) > 1 or args.lines or args.line_pings:
         if not all(xtf):
             raise SonarRasterError(
@@ -657,10 +663,13 @@ def _invert_lines(args: argparse.Namespace) -> int:
     if args.side:
         raise SonarRasterError("--side is for one file; survey lines are inverted on both sides")
     sizes = [_xtf_samples(Path(p)) for p in args.image]
-    if not args.pings and all(sizes):
+    # sized from the files before reading them, unless pings are chosen (then once read)
+    early = not args.pings and not args.line_pings and all(sizes)
+    if early:
+        files = f"{len(args.image)} XTF file" + ("s" if len(args.image) > 1 else "")
         check_cost(
             sum(s for s in sizes if s),
-            f"inverting {len(args.image)} XTF files",
+            f"inverting {files}",
             "invert fewer files or pings at a time",
             args,
         )
@@ -678,9 +687,11 @@ def _invert_lines(args: argparse.Namespace) -> int:
             f"{ml.describe_lines(lines)}: several lines need two or more; invert a single "
             "line without --lines or --line-pings"
         )
-    if args.method == "auto":
+    auto = args.method == "auto"
+    if auto:
         _choose_method(args, [line.sides for line in lines])
-        pixels = sum(v.size for line in lines for v in line.sides.values())  # said, checked
+    if auto or not early:  # the chosen method's cost, on the pings read
+        pixels = sum(v.size for line in lines for v in line.sides.values())
         check_cost(pixels, f"inverting {len(lines)} lines", "invert fewer lines or pings "
                    "at a time", args)  # fmt: skip
     options = _line_options(args, BeamProfile)

@@ -188,8 +188,11 @@ def object_mesh(spec: str, base: Path | None = None) -> ObjectMesh:
         params = {k: v for k, v in opts.items()}
         try:
             v, f = build_primitive(kind, params)
-        except TypeError as exc:
-            raise SonarRasterError(f"object {spec!r}: {exc}") from None
+        except (TypeError, SonarRasterError) as exc:
+            every = ", ".join(k for k in _COMMON if k not in ("scale", "up"))
+            raise SonarRasterError(
+                f"object {spec!r}: {exc} (any object also takes {every})"
+            ) from None
         label = label or kind
     elif kind.lower().endswith(MODEL_SUFFIXES):
         path = Path(kind) if base is None or Path(kind).is_absolute() else base / kind

@@ -27,6 +27,8 @@ from .xtf_patch import patch_xtf
 __all__ = ["LABEL_CLASSES", "insertion_jobs", "output_paths", "write_label_png", "xtf_job"]
 
 LABEL_CLASSES = {0: "background", 1: "highlight", 2: "shadow"}
+#: Suffixes of files insert writes, or of images: not taken as part of an output stem.
+_PRODUCT_SUFFIXES = (".png", ".json", ".txt", ".exr", ".tif", ".tiff", ".jpg", ".npy", ".csv")
 
 
 def output_paths(out: str | Path, xtf: bool = True) -> dict[str, Path]:
@@ -44,6 +46,11 @@ def output_paths(out: str | Path, xtf: bool = True) -> dict[str, Path]:
     name = stem.name
     if not name or name in (".", ".."):
         raise SonarRasterError(f"output {out}: give a file name such as line1_inserted.xtf")
+    if out.suffix.lower() in _PRODUCT_SUFFIXES:  # 'ins.png' would give ins.png.png, ins.png.xtf
+        raise SonarRasterError(
+            f"output {out}: give a stem or OUT.xtf (e.g. -o {out.with_suffix('')}); insert "
+            "writes OUT.xtf, OUT.png, OUT.json and the label files beside them"
+        )
     paths = {
         "image": stem.with_name(f"{name}.png"),
         "sidecar": stem.with_name(f"{name}.json"),

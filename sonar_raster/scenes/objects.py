@@ -9,8 +9,10 @@ perturbed icospheres. Parameters are in metres.
 
 from __future__ import annotations
 
+import inspect
 import math
 from collections.abc import Callable
+from difflib import get_close_matches
 
 import numpy as np
 
@@ -160,5 +162,16 @@ def build_primitive(kind: str, params: dict) -> Mesh:
     if builder is None:
         raise SonarRasterError(
             f"unknown primitive {kind!r}; use one of {', '.join(sorted(PRIMITIVES))}"
+        )
+    keys = list(inspect.signature(builder).parameters)
+    unknown = [k for k in params if k not in keys]
+    if unknown:
+        hints = [
+            f"{k}: did you mean {m[0]}?" for k in unknown if (m := get_close_matches(k, keys, 1))
+        ]
+        hint = f" ({'; '.join(hints)})" if hints else ""
+        raise SonarRasterError(
+            f"unknown key(s) {', '.join(map(repr, unknown))} for a {kind}; its keys are "
+            f"{', '.join(keys)}{hint}"
         )
     return builder(**params)

@@ -119,6 +119,25 @@ def test_an_xtf_inversion_is_sized_from_the_file_before_reading_it(tmp_path, cap
     assert "scotsman-iver2.xtf" in line and "--pings A:B" in line
 
 
+def test_survey_lines_given_by_ping_ranges_are_sized_by_those_pings(tmp_path, monkeypatch):
+    """``--line-pings`` reads 80 of the file's 461 pings: the estimate is theirs, not the file's."""
+    from sonar_raster.cli import invert as invert_cli
+    from sonar_raster.errors import SonarRasterError
+
+    if not XTF.is_file():
+        pytest.fail(f"{XTF} is missing: the shared data must sit beside the clone")
+    sized = []
+
+    def stop(pixels, what, lower, args):
+        sized.append(pixels)
+        raise SonarRasterError("stopped by the test")
+
+    monkeypatch.setattr(invert_cli, "check_cost", stop)
+    args = ["invert", str(XTF), "--line-pings", "100:140,140:180", "--method", "profiles"]
+    assert main([*args, "-o", str(tmp_path / "o"), "-q"]) == 2
+    assert sized == [2 * 40 * 2 * 1024]  # two lines of 40 pings, two sides of 1024 samples
+
+
 def test_a_dataset_larger_than_the_free_disk_or_memory_is_refused(tmp_path, capsys, monkeypatch):
     out = tmp_path / "ds"
     monkeypatch.setattr(_budget, "free_disk", lambda folder: 10_000_000)

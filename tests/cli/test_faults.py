@@ -658,3 +658,15 @@ def test_a_reader_that_goes_away_ends_the_command_quietly(tmp_path):
     )
     assert done.returncode == 141, done.stderr
     assert done.stderr == ""
+
+
+def test_a_beam_that_cannot_be_read_is_the_first_thing_said(tmp_path, capsys):
+    """Before the image is read, the method chosen or the cost estimated."""
+    image = tmp_path / "img.npy"
+    np.save(image, np.random.default_rng(0).exponential(1.0, (40, 300)).astype(np.float32))
+    args = ["invert", str(image), "--range-bin", "0.05", "--beam", str(tmp_path / "nowhere")]
+    assert main([*args, "-o", str(tmp_path / "out")]) == 2
+    captured = capsys.readouterr()
+    assert "cannot read beam profile" in one_error_line(captured.err)
+    assert captured.out == ""
+    assert not (tmp_path / "out").exists()

@@ -49,6 +49,24 @@ def test_unreadable_model(capsys, tmp_path, sample):
     _bad(capsys, tmp_path, [sample, "--object", "teapot", "--at", "100,10"], "neither")
 
 
+def test_misspelt_primitive_key_names_the_keys(capsys, tmp_path, sample):
+    _bad(
+        capsys,
+        tmp_path,
+        [sample, "--object", "box:sise=1,1,1", "--at", "100,10"],
+        "unknown key(s) 'sise' for a box; its keys are size (sise: did you mean size?)",
+    )
+
+
+def test_an_output_named_like_an_image_is_refused_before_reading(capsys, tmp_path, sample):
+    out = tmp_path / "out"
+    out.mkdir()
+    assert main(["insert", sample, "--object", "box", "-o", str(out / "ins.png")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "give a stem or OUT.xtf (e.g. -o " in err, err
+    assert list(out.iterdir()) == []
+
+
 def test_recording_without_bottom_track(capsys, tmp_path):
     rng = np.random.default_rng(0)
     pings, bins = 40, 400
