@@ -100,6 +100,31 @@ _MAIN_BYTES = 300e6
 _RELIEF_NODE_BYTES = 400.0
 
 
+def _image_bins(config: Any) -> tuple[int, int]:
+    """Bins per side and sides of the largest sample image.
+
+    The config's, or with a ``[background]`` its recordings' (a window keeps its recording's
+    samples per ping). A recording that cannot be read here is left to the run, which names
+    what is wrong.
+    """
+    bins, sides = int(config.bins), len(config.sides)
+    background = getattr(config, "background", None)
+    if background is None:
+        return bins, sides
+    from ..errors import SonarRasterError
+    from ..io.xtf import iter_pings
+
+    for recording in background.recordings:
+        try:
+            first = next(iter(iter_pings(recording, background.frequency)), None)
+        except (OSError, SonarRasterError):
+            continue
+        if first is not None and first.sides:
+            bins = max(bins, max(len(v) for v in first.sides.values()))
+            sides = max(sides, len(first.sides))
+    return bins, sides
+
+
 def check_dataset_size(config: Any, args: argparse.Namespace) -> None:
     """Estimate the dataset's disk (per sample x count) and its workers' memory; refuse it early.
 
@@ -116,19 +141,18 @@ def check_dataset_size(config: Any, args: argparse.Namespace) -> None:
     from .._budget import check_disk, check_memory, size_text
 
     count = args.count or config.count
-    cells = float(config.pings) * config.bins * len(config.sides)
+    bins, sides = _image_bins(config)
+    cells = float(config.pings) * bins * sides
     per_cell = config.bits // 8 + _SAMPLE_BYTES["instances"] + _SAMPLE_BYTES["classes"]
     if "exr" in config.formats:
         per_cell += _SAMPLE_BYTES["exr"]
     per_sample = cells * per_cell + _SAMPLE_EXTRA
-    what = (
-        f"{count} samples of {config.pings} pings x {config.bins} bins x {len(config.sides)} sides"
-    )
+    what = f"{count} samples of {config.pings} pings x {bins} bins x {sides} sides"
     check_disk([(Path(args.output) / "images" / "x", per_sample * count)], what,
                "lower -n, or write fewer formats", force=args.force)  # fmt: skip
     oversample = float(config.render.get("oversample", 2.0))
     along = int(config.render.get("along_samples", 2))
-    texels = min(1 << 26, math.ceil(oversample * config.bins * 1.2) * config.pings * along)
+    texels = min(1 << 26, math.ceil(oversample * bins * 1.2) * config.pings * along)
     objects = sum(_most_drawn(spec.count) for spec in config.objects)
     per_worker = (
         _WORKER_BASE_BYTES

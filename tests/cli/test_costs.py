@@ -153,6 +153,31 @@ def test_a_dataset_larger_than_the_free_disk_or_memory_is_refused(tmp_path, caps
     assert not out.exists()
 
 
+def test_a_dataset_on_recordings_is_sized_by_their_samples(tmp_path, capsys, monkeypatch):
+    """A ``[background]`` window keeps its recording's samples per ping (3000 here), not the
+    config's bins (1024 by default): the disk estimate counts the recording's."""
+    from sonar_raster.image import SonarImage
+    from sonar_raster.io.xtf import write_xtf
+    from sonar_raster.sonar import Sonar
+    from sonar_raster.trajectory import Trajectory
+
+    rng = np.random.default_rng(0)
+    sides = {s: rng.exponential(1.0, (40, 3000)).astype(np.float32) for s in ("port", "starboard")}
+    sonar = Sonar(max_range=90.0, range_bin=0.03, sides=("port", "starboard"))
+    track = Trajectory.straight((0.0, 0.0, -5.0), 0.0, 0.1, 40)
+    write_xtf(tmp_path / "rec.xtf", SonarImage(sides, sonar), track)
+    config = tmp_path / "bg.toml"
+    config.write_text(
+        '[dataset]\nname = "bg"\npings = 32\nsides = ["port", "starboard"]\n'
+        '[background]\nrecordings = ["rec.xtf"]\n[[objects]]\nprimitive = "box"\n'
+    )
+    out = tmp_path / "ds"
+    monkeypatch.setattr(_budget, "free_disk", lambda folder: 10_000)
+    assert main(["dataset", str(config), "-o", str(out), "-n", "2", "-q"]) == 2
+    assert "2 samples of 32 pings x 3000 bins x 2 sides" in one_error_line(capsys.readouterr().err)
+    assert not out.exists()
+
+
 @pytest.mark.parametrize(
     ("count", "most"),
     [("100000", 100000), ("{ integers = [3, 70000] }", 70000), ("{ choice = [1, 90000] }", 90000),
