@@ -510,11 +510,18 @@ def _solve(level, prev, coarse, opts: _Options, label):
     if opts.progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=opts.max_iter * len(runs), desc=label, unit="it", leave=True)
+        # over the starts' iteration budget (max_iter each); a start that converges early
+        # gives its unused budget back at once, so the bar ends at 100 % with the level and its
+        # time left is an upper bound; the iterations actually run are in the postfix
+        fmt = "{desc}: {percentage:3.0f}%|{bar}| [{elapsed}<{remaining}{postfix}]"
+        bar = tqdm(total=opts.max_iter * len(runs), desc=label, bar_format=fmt, leave=True)
     tick = bar.update if bar is not None else None
     best: tuple | None = None
-    kept, report = "", []
-    for name, s0 in runs:
+    kept, report, ran = "", [], 0
+    for k, (name, s0) in enumerate(runs):
+        if bar is not None:
+            bar.set_postfix_str(f"start {k + 1}/{len(runs)}", refresh=False)
+            budget_end = bar.n + opts.max_iter
         out = iterate(
             prob,
             s0.r.ravel(),
@@ -528,13 +535,15 @@ def _solve(level, prev, coarse, opts: _Options, label):
         report.append(
             {"start": name, "iterations": len(out[3]) - 1, "energy": out[3][-1], "stopped": out[4]}
         )
+        ran += len(out[3]) - 1
+        if bar is not None:
+            bar.set_postfix_str(f"start {k + 1}/{len(runs)}, {ran} iterations", refresh=False)
+            bar.update(max(0, budget_end - bar.n))
         if best is None or out[3][-1] < best[3][-1]:
             best, kept = out, name
     assert best is not None  # runs is never empty
     r, phi, z, e, _ = best
-    if bar is not None:  # the starts stopped early: show the level as done
-        bar.total = bar.n
-        bar.refresh()
+    if bar is not None:
         bar.close()
     r_cells, _ = prob.cells(r, phi)
     pings, cells = level.image.shape

@@ -671,3 +671,19 @@ def test_png_input_is_read_as_linear_grey_levels(tmp_path):
     image, side, _ = read_side(tmp_path / "in.png", None)
     assert image.shape == (6, 9) and side == "starboard"
     np.testing.assert_allclose(image, levels / 255.0, atol=1e-6)
+
+
+def test_the_profiles_progress_bar_runs_over_the_budget_and_says_what_ran(capsys):
+    """Each level's bar covers its starts' iteration budget; a start that converges early
+    gives back the rest, so the bar ends at 100 % and says the iterations run (it used to
+    start at the budget, e.g. 0/900, and jump to 16/16)."""
+    rng = np.random.default_rng(0)
+    image = rng.exponential(1.0, (60, 400))
+    image[:, :150] *= 1e-3  # the water column before the first return
+    invert(image, 0.05, ping_spacing=0.1, progress=True)
+    lines = capsys.readouterr().err.replace("\r", "\n").splitlines()
+    finals = [line for line in lines if line.startswith("level 3/3") and "100%" in line]
+    assert finals, lines
+    ran = finals[-1].split(", ")[-1]
+    assert ran.endswith("iterations]") and int(ran.split()[0]) > 0
+    assert not any("/900" in line or "it/s" in line for line in lines)
