@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import numbers
 from collections.abc import Callable
 from typing import Any
 
@@ -56,7 +57,8 @@ def fraction(label: str, value: Any, upper: float = 1.0) -> float:
 
 def integer(label: str, value: Any, minimum: int = 1) -> int:
     """``value`` as an int >= ``minimum`` (bools and non-integral floats refused)."""
-    whole = isinstance(value, (int, float)) and math.isfinite(value) and value == int(value)
+    real = isinstance(value, numbers.Real)  # numpy's integers and floats too
+    whole = real and math.isfinite(value) and value == int(value)
     if isinstance(value, bool) or not whole:
         raise SonarRasterError(f"{label} must be a whole number, got {value!r}")
     if value < minimum:

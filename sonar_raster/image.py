@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -12,6 +13,8 @@ from .sonar import Sonar
 #: echoes in any unit: the XTF reader blanks them like NaN, ``sonar-raster invert`` refuses
 #: them (its float32 products overflow near them).
 NO_DATA_LEVEL = 1e30
+#: The sides an image may have.
+SIDE_NAMES = ("port", "starboard")
 
 
 @dataclass(frozen=True)
@@ -39,6 +42,26 @@ class SonarImage:
     sonar: Sonar
     metadata: dict = field(default_factory=dict)
     labels: dict[str, np.ndarray] | None = None
+
+    def __post_init__(self) -> None:
+        from .errors import SonarRasterError
+
+        if not isinstance(self.sides, Mapping):
+            raise SonarRasterError(
+                "SonarImage sides must be a dict such as {'starboard': array of (pings, bins)}"
+            )
+        wrong = [k for k in self.sides if k not in SIDE_NAMES]
+        if wrong:
+            raise SonarRasterError(
+                f"SonarImage side(s) {', '.join(map(repr, wrong))}: name them 'port' or "
+                "'starboard' (lower case)"
+            )
+        for name, values in self.sides.items():
+            if np.ndim(values) != 2:
+                raise SonarRasterError(
+                    f"SonarImage side {name!r} must be 2-D (pings, bins), got shape "
+                    f"{np.shape(values)}"
+                )
 
     @property
     def shape(self) -> tuple[int, int]:

@@ -111,10 +111,24 @@ class Trajectory:
     pitch: np.ndarray = field(default_factory=lambda: np.zeros(1))  # broadcast to every ping
 
     def __post_init__(self) -> None:
-        p = np.asarray(self.positions, dtype=np.float64).reshape(-1, 3)
+        p = np.asarray(self.positions, dtype=np.float64)
+        if p.ndim == 1 and p.size == 3:
+            p = p.reshape(1, 3)  # one pose
+        if p.ndim != 2 or p.shape[1] != 3:
+            raise SonarRasterError(
+                f"trajectory positions must be (pings, 3) x, y, z rows, got shape {p.shape}; "
+                "e.g. np.column_stack([x, y, z])"
+            )
         h = np.asarray(self.headings, dtype=np.float64).reshape(-1)
-        r = np.broadcast_to(np.asarray(self.roll, dtype=np.float64), h.shape).copy()
-        t = np.broadcast_to(np.asarray(self.pitch, dtype=np.float64), h.shape).copy()
+        for name, angle in (("roll", self.roll), ("pitch", self.pitch)):
+            size = np.size(angle)
+            if size not in (1, len(h)):
+                raise SonarRasterError(
+                    f"trajectory {name} has {size} values for {len(h)} headings; give one per "
+                    "ping or one for all"
+                )
+        r = np.broadcast_to(np.asarray(self.roll, dtype=np.float64).reshape(-1), h.shape).copy()
+        t = np.broadcast_to(np.asarray(self.pitch, dtype=np.float64).reshape(-1), h.shape).copy()
         if len(p) == 0:
             raise SonarRasterError("the trajectory has no pings; use at least one ping")
         if len(h) != len(p):

@@ -758,31 +758,10 @@ def _refuse_coarsen(args: argparse.Namespace) -> None:
 
 
 def surface_beam(path: str) -> BeamProfile | dict[str, BeamProfile]:
-    """``--beam`` of the surface fit: one profile for every side, or one per side.
+    """``--beam`` of the surface fit (:func:`..inversion.solver.load_beams`)."""
+    from ..inversion.solver import load_beams
 
-    A file is a ``beam_profile.json``; a folder is an earlier ``invert`` run's output, whose
-    ``SIDE/beam_profile.json`` (``line_1/SIDE/`` for survey lines) or single
-    ``beam_profile.json`` is read.
-    """
-    from ..inversion.solver import BeamProfile
-
-    where = Path(path)
-    if not where.is_dir():
-        return BeamProfile.load(where)
-    found = {}
-    for side in ("port", "starboard"):
-        for folder in (where / side, where / "line_1" / side):
-            if (folder / "beam_profile.json").is_file():
-                found[side] = BeamProfile.load(folder / "beam_profile.json")
-                break
-    if found:
-        return found
-    if (where / "beam_profile.json").is_file():
-        return BeamProfile.load(where / "beam_profile.json")
-    raise SonarRasterError(
-        f"{where} holds no beam_profile.json (an invert output folder has one per side); "
-        "give that file or folder"
-    )
+    return load_beams(path)
 
 
 def _line_jobs(args, out: Path, lines, results, gridded, datum: str) -> list:

@@ -221,8 +221,11 @@ def dask_client(scheduler: str, workers: int) -> Iterator[Any]:
                 client = Client(cluster)
             else:
                 client = Client(scheduler, timeout="10s")
-        except OSError as exc:
-            raise SonarRasterError(f"cannot reach the Dask scheduler {scheduler}: {exc}") from None
+        except (OSError, ValueError) as exc:  # ValueError: not an address
+            raise SonarRasterError(
+                f"cannot reach the Dask scheduler {scheduler}: {exc} (give 'local' or an "
+                "address such as tcp://host:8786)"
+            ) from None
         try:
             yield client
         finally:

@@ -57,7 +57,7 @@ from typing import Any
 
 import numpy as np
 
-from .._checks import non_negative, number, positive
+from .._checks import integer, non_negative, number, positive
 from ..errors import SonarRasterError
 from ..image import SonarImage
 from ..sonar import SIDES
@@ -671,6 +671,11 @@ def _first_returns(side: np.ndarray) -> np.ndarray:
     return np.where(hit.any(axis=1), hit.argmax(axis=1), side.shape[1])
 
 
+def _seed(seed: Any) -> int | None:
+    """A seed of the random stages: None (fresh entropy) or a whole number >= 0."""
+    return None if seed is None else integer("seed", seed, minimum=0)
+
+
 def apply_effects(
     image: SonarImage,
     effects: Effects | None = None,
@@ -710,6 +715,15 @@ def apply_effects(
         On an invalid image or a missing ping spacing for the along-track beam.
     """
     fx = effects if effects is not None else Effects()
+    if not isinstance(fx, Effects):
+        raise SonarRasterError(
+            f"effects must be an Effects (e.g. Effects(speckle='exponential') or a preset's "
+            f".effects()), got {type(fx).__name__}"
+        )
+    if not isinstance(image, SonarImage):
+        raise SonarRasterError(
+            f"apply_effects takes a SonarImage (what render returns), got {type(image).__name__}"
+        )
     stages = fx.stages
     if not stages:
         return SonarImage(
@@ -722,7 +736,7 @@ def apply_effects(
     alpha = (
         fx.alpha_db_m(sonar.frequency_hz) if ("absorption" in stages or fx.tvg == "log") else 0.0
     )
-    entropy = np.random.SeedSequence(seed)
+    entropy = np.random.SeedSequence(_seed(seed))
     children = entropy.spawn(len(SIDES))
     work = {name: np.asarray(a, dtype=np.float64) for name, a in image.sides.items()}
     need_first = "nadir_gap" in stages or "water_column" in stages
@@ -804,7 +818,7 @@ def apply_effects_blocks(
     SonarImage
         Each block with the effects applied, its metadata kept (``effects`` added).
     """
-    entropy = np.random.SeedSequence(seed).entropy
+    entropy = np.random.SeedSequence(_seed(seed)).entropy
     fx, halo = effects, None
     tail: dict[str, np.ndarray] | None = None  # the raw pings before the held block
     held: SonarImage | None = None

@@ -53,6 +53,7 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from scipy import ndimage
 
+from .._checks import positive
 from ..errors import SonarRasterError
 from .ground import check_slant
 from .priors import estimate_looks
@@ -419,6 +420,7 @@ def _detect(
     image = check_slant(slant, range_bin)
     if not (isinstance(window, (int, np.integer)) and window >= 2):
         raise SonarRasterError(f"window must be an integer >= 2 bins, got {window!r}")
+    positive("min_contrast_db (the return's rise over the water column, dB)", min_contrast_db)
     if looks is None:  # fully developed speckle has at least one look
         looks = max(estimate_looks(image, np.ones_like(image)), 1.0) if len(image) > 1 else math.inf
     elif not (isinstance(looks, (int, float)) and looks > 0):
@@ -508,8 +510,16 @@ def track_bottom(
     BottomTrack
         ``raw`` and ``contrast_db`` are the larger over the sides.
     """
+    if not isinstance(sides, Mapping):
+        raise SonarRasterError(
+            f"track_bottom takes the image's sides (a dict such as image.sides), got "
+            f"{type(sides).__name__}; for one side's array use track_side"
+        )
     if not sides:
         raise SonarRasterError("no image sides to track")
+    shapes = {np.shape(v)[:1] for v in sides.values()}
+    if len(shapes) > 1:
+        raise SonarRasterError("the sides have different ping counts; give sides of one image")
     size = _odd(smooth_pings)
     raws, cleans, contrasts = [], [], []
     for values in sides.values():

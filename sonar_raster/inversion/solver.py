@@ -26,7 +26,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .._checks import integer, positive
 from ..errors import SonarRasterError
+from ..image import SonarImage
 from . import pyramid
 from .bottom import track_side
 from .em import Problem, Steps, iterate
@@ -87,6 +89,17 @@ class BeamProfile:
     depression: np.ndarray
     gain: np.ndarray
 
+    def __post_init__(self) -> None:
+        dep = np.asarray(self.depression, dtype=np.float64)
+        gain = np.asarray(self.gain, dtype=np.float64)
+        if dep.ndim != 1 or dep.shape != gain.shape or dep.size < 2:
+            raise SonarRasterError(
+                f"a beam profile needs depression and gain as two equal 1-D lists of >= 2 "
+                f"values, got shapes {dep.shape} and {gain.shape}"
+            )
+        object.__setattr__(self, "depression", dep)  # arrays, whatever the caller gave
+        object.__setattr__(self, "gain", gain)
+
     def __call__(self, depression: np.ndarray) -> np.ndarray:
         """Φ at the given depression angles (linear interpolation, held at the ends)."""
         order = np.argsort(self.depression)
@@ -99,7 +112,12 @@ class BeamProfile:
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> BeamProfile:
-        """Read a profile written by :meth:`save`."""
+        """Read a profile written by :meth:`save`.
+
+        ``path`` may also be a folder holding one ``beam_profile.json`` (an output folder).
+        """
+        if Path(path).is_dir() and (Path(path) / "beam_profile.json").is_file():
+            path = Path(path) / "beam_profile.json"
         try:
             doc = json.loads(Path(path).read_text())
             dep = np.asarray(doc["depression_rad"], dtype=np.float64)
@@ -111,6 +129,32 @@ class BeamProfile:
         if not (np.all(np.isfinite(dep)) and np.all(np.isfinite(gain)) and np.all(gain >= 0)):
             raise SonarRasterError(f"beam profile {path}: values must be finite, gain >= 0")
         return cls(dep, gain)
+
+
+def load_beams(path: str | os.PathLike) -> BeamProfile | dict[str, BeamProfile]:
+    """A calibrated beam for the surface fit: one profile for every side, or one per side.
+
+    A file is a ``beam_profile.json``; a folder is an earlier ``invert`` run's output, whose
+    ``SIDE/beam_profile.json`` (``line_1/SIDE/`` for survey lines) or single
+    ``beam_profile.json`` is read.
+    """
+    where = Path(path)
+    if not where.is_dir():
+        return BeamProfile.load(where)
+    found = {}
+    for side in ("port", "starboard"):
+        for folder in (where / side, where / "line_1" / side):
+            if (folder / "beam_profile.json").is_file():
+                found[side] = BeamProfile.load(folder / "beam_profile.json")
+                break
+    if found:
+        return found
+    if (where / "beam_profile.json").is_file():
+        return BeamProfile.load(where / "beam_profile.json")
+    raise SonarRasterError(
+        f"{where} holds no beam_profile.json (an invert output folder has one per side); "
+        "give that file or folder"
+    )
 
 
 @dataclass(frozen=True)
@@ -228,8 +272,13 @@ def _start(level: pyramid.Level, bins: np.ndarray, centres: np.ndarray, prev, co
 
 
 def _check(slant: np.ndarray, range_bin: float, levels: int) -> np.ndarray:
-    if levels < 1:
-        raise SonarRasterError(f"levels must be >= 1, got {levels}")
+    if isinstance(slant, (dict, SonarImage)):
+        raise SonarRasterError(
+            "invert takes one side's (pings, bins) array, e.g. image.sides['starboard']; "
+            "for both sides at once use the surface fit (sonar_raster.inversion.surface)"
+        )
+    integer("levels", levels)
+    positive("range_bin (metres)", range_bin)
     return check_slant(slant, range_bin, min_pings=2)
 
 
@@ -253,7 +302,7 @@ def invert(
     levels: int = 3,
     max_iter: int = 300,
     tol: float = 1e-2,
-    beam: BeamProfile | None = None,
+    beam: BeamProfile | str | os.PathLike | None = None,
     steps: Steps | None = None,
     flat_prior: float = 0.0,
     looks: float | str | None = "auto",
@@ -286,8 +335,9 @@ def invert(
         near-flat directions (absolute level, tilt, Φ against relief) that long runs drift
         along, so the default 1e-2 also regularises (run time against error:
         docs/inversion.md).
-    beam : BeamProfile, optional
-        Calibrated mode: Φ fixed from this profile; only R and Z are estimated.
+    beam : BeamProfile or path, optional
+        Calibrated mode: Φ fixed from this profile (or a ``beam_profile.json``, or an output
+        folder holding one); only R and Z are estimated.
     steps : Steps, optional
         Relative step weights of R, Φ, Z (default all 1).
     flat_prior : float
@@ -323,6 +373,23 @@ def invert(
         For an empty, non-finite or negative image, or bad sizes.
     """
     original = _check(slant, range_bin, levels)
+    if isinstance(beam, (str, os.PathLike)):
+        beam = BeamProfile.load(beam)
+    if beam is not None:
+        if not isinstance(beam, BeamProfile):
+            raise SonarRasterError(
+                f"beam must be a BeamProfile or the path of a beam_profile.json, got "
+                f"{type(beam).__name__}"
+            )
+        if not (np.all(np.isfinite(beam.depression)) and np.all(np.isfinite(beam.gain))):
+            raise SonarRasterError("the beam profile holds NaN or infinite values")
+        if np.any(beam.gain < 0):
+            raise SonarRasterError("the beam profile's gain must be >= 0")
+    integer("max_iter", max_iter)
+    if not (isinstance(tol, (int, float)) and math.isfinite(tol) and tol > 0):
+        raise SonarRasterError(f"tol must be a number > 0, got {tol!r}")
+    if ping_spacing is not None:
+        positive("ping_spacing (metres)", ping_spacing)
     if not (math.isfinite(flat_prior) and flat_prior >= 0):
         raise SonarRasterError(f"flat prior must be a number >= 0, got {flat_prior!r}")
     for name, value in (("relief_std", relief_std), ("slope_std", slope_std)):
@@ -369,6 +436,13 @@ def invert(
         runs.append(run)
         coarse = level
     inv = _rescaled(_result(chain[-1], state, ground, valid, energies), scale)
+    if not np.any(np.isfinite(inv.elevation)):
+        pings, bins = image.shape
+        raise SonarRasterError(
+            f"no ground cell could be fitted in {pings} pings x {bins} bins (altitude "
+            f"{np.nanmedian(alt):.3g} m, range {bins * range_bin:.3g} m): give the image as "
+            "(pings, slant-range bins) with its range bin, reaching well past the first return"
+        )
     settings = {
         "method": "profiles",
         "levels": len(chain),

@@ -196,9 +196,19 @@ def write_products(
     list of Path
         The files written.
     """
+    from .._checks import integer, positive
+    from ..image import SIDE_NAMES
     from ..io.commit import commit
 
+    if side not in SIDE_NAMES:
+        raise SonarRasterError(f"side must be 'port' or 'starboard', got {side!r}")
+    positive("range_bin (metres)", range_bin)
+    if previews:
+        for n in preview_size:
+            integer("preview_size (pixels)", n)
     directory = Path(directory)
+    if directory.exists() and not directory.is_dir():
+        raise SonarRasterError(f"{directory} is a file; give a folder for the products")
     jobs = product_jobs(
         inv, directory, side, range_bin, mesh=mesh, previews=previews,
         preview_size=preview_size, backend=backend,

@@ -919,6 +919,28 @@ class XtfNavigation:
         return path / float(idx[-1] - idx[0])
 
 
+def _ping_slice(pings: Any) -> slice:
+    """``pings`` of :func:`read_xtf` as a slice.
+
+    A slice, a ``range`` of step 1, a ``(start, stop)`` pair, or None (every ping).
+    """
+    if pings is None:
+        return slice(None)
+    if isinstance(pings, slice):
+        return pings
+    if isinstance(pings, range) and pings.step == 1:
+        return slice(pings.start, pings.stop)
+    if (
+        isinstance(pings, tuple)
+        and len(pings) == 2
+        and all(v is None or isinstance(v, (int, np.integer)) for v in pings)
+    ):
+        return slice(*pings)
+    raise SonarRasterError(
+        f"pings must be a slice of ping indices, e.g. slice(0, 100) or (0, 100), got {pings!r}"
+    )
+
+
 def read_xtf(
     path: str | os.PathLike, pings: slice | None = None, frequency: float | str | None = None
 ) -> tuple[SonarImage, XtfNavigation]:
@@ -929,7 +951,8 @@ def read_xtf(
     path : str or PathLike
         The ``.xtf`` file.
     pings : slice, optional
-        Which pings to keep (by index among the side-scan pings, skipped ones included), e.g.
+        Which pings to keep (a slice, a ``(start, stop)`` pair or a ``range``; by index among
+        the side-scan pings, skipped ones included), e.g.
         ``slice(100, 200)``.
     frequency : float or {"low", "high"}, optional
         A dual-frequency file's channels to read (as :class:`XtfReader`): Hz, or "low" /
@@ -959,7 +982,7 @@ def read_xtf(
     What was skipped or interpolated is logged as one warning line (logger ``sonar_raster.io
     .xtf``).
     """
-    keep = pings or slice(None)
+    keep = _ping_slice(pings)
     forward = all(v is None or v >= 0 for v in (keep.start, keep.stop))
     rows: list[XtfPing] = []
     with XtfReader(path, frequency) as reader:

@@ -6,6 +6,7 @@ Also the Laplace uncertainty of Z.
 from __future__ import annotations
 
 import math
+import os
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -215,7 +216,7 @@ def fit_lines(
     finest: int = 1,
     max_iter: int = 150,
     uncertainty: bool = True,
-    beam: BeamProfile | Mapping[str, BeamProfile] | None = None,
+    beam: BeamProfile | Mapping[str, BeamProfile] | str | os.PathLike | None = None,
     progress: Progress | None = None,
 ) -> list[SurfaceFit]:
     """Fit one seabed surface, its reflectivity and each side's beam profile to several lines.
@@ -246,9 +247,10 @@ def fit_lines(
         (``GAUSS_NEWTON_STEPS = 0``).
     uncertainty : bool
         Estimate the standard deviation of Z per cell (:func:`elevation_std`).
-    beam : BeamProfile or mapping of str to BeamProfile, optional
+    beam : BeamProfile, mapping of str to BeamProfile, or path, optional
         Calibrated mode: a beam profile from an earlier fit of the same sensor (e.g. a
-        ``beam_profile.json``), one for every side or one per side. Its shape is held where its
+        ``beam_profile.json``, or an earlier run's output folder), one for every side or one
+        per side. Its shape is held where its
         angles reach (:data:`.problem.CALIBRATED_BEAM_STD`), its level is fitted; relief that
         every ping shares (a trench along the track), which a free Φ would absorb, is then
         seen; the prior on the line-averaged profile of Z, which stood in for the calibration,
@@ -262,6 +264,10 @@ def fit_lines(
         One per line, in order.
     """
     start = time.perf_counter()
+    if isinstance(beam, (str, os.PathLike)):
+        from ..solver import load_beams
+
+        beam = load_beams(beam)
     prepared, frame, grids = _setup(lines, looks, z_knot, r_knot, levels, finest)
     params: np.ndarray | None = None
     previous: Problem | None = None

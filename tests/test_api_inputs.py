@@ -1,0 +1,156 @@
+"""The Python API on a user's plain mistakes: one SonarRasterError saying what to do.
+
+Cases from an audit of the public functions (2026-12-02): each used to end in a raw numpy,
+attribute or type error from deep inside, or in silently wrong output (a side named "Port"
+written as starboard, an all-NaN inversion).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import SHARED_DATA
+
+from sonar_raster import BeamProfile, Effects, apply_effects, invert, read_xtf, track_bottom
+from sonar_raster.errors import SonarRasterError
+from sonar_raster.image import SonarImage
+from sonar_raster.sonar import Sonar
+from sonar_raster.trajectory import Trajectory
+
+SAMPLE = SHARED_DATA / "xtf" / "scotsman-iver2.xtf"
+
+
+def _side(pings: int = 40, bins: int = 300, seed: int = 0) -> np.ndarray:
+    """Speckled seabed past a dark water column (first return at bin 100)."""
+    image = np.random.default_rng(seed).exponential(1.0, (pings, bins))
+    image[:, :100] *= 1e-3
+    return image
+
+
+def _image() -> SonarImage:
+    side = _side().astype(np.float32)
+    sonar = Sonar(max_range=15.0, range_bin=0.05, sides=("port", "starboard"))
+    return SonarImage({"port": side, "starboard": side.copy()}, sonar)
+
+
+@pytest.mark.parametrize(
+    ("sides", "message"),
+    [
+        ({"Port": np.ones((4, 300), np.float32)}, "side(s) 'Port': name them 'port' or"),
+        ({"stbd": np.ones((4, 300), np.float32)}, "side(s) 'stbd'"),
+        ({"port": np.ones(300, np.float32)}, "must be 2-D (pings, bins)"),
+        ([np.ones((4, 300))], "must be a dict"),
+    ],
+    ids=["capitalised", "abbreviated", "1-D", "list"],
+)
+def test_an_image_with_odd_sides_is_refused(sides, message):
+    with pytest.raises(SonarRasterError, match=None) as err:
+        SonarImage(sides, Sonar(max_range=15.0, range_bin=0.05))
+    assert message in str(err.value)
+
+
+def test_a_trajectory_of_columns_is_refused_not_reshaped():
+    x = np.arange(10.0)
+    rows = np.vstack([x, np.zeros(10), np.full(10, 5.0)])  # (3, 10): columns, not rows
+    with pytest.raises(SonarRasterError, match=r"must be \(pings, 3\)"):
+        Trajectory(rows, np.zeros(10), np.zeros(10))
+    with pytest.raises(SonarRasterError, match="roll has 3 values for 10 headings"):
+        Trajectory(rows.T, np.zeros(10), np.zeros(3))
+    one = Trajectory(np.array([0.0, 0.0, 5.0]), np.zeros(1), np.zeros(1))  # one pose stays fine
+    assert one.positions.shape == (1, 3)
+
+
+def test_track_bottom_wants_the_sides_and_a_positive_contrast():
+    image = _image()
+    with pytest.raises(SonarRasterError, match=r"image\.sides"):
+        track_bottom(image, 0.05)  # type: ignore[arg-type]
+    with pytest.raises(SonarRasterError, match="min_contrast_db"):
+        track_bottom(image.sides, 0.05, min_contrast_db=-5.0)
+    with pytest.raises(SonarRasterError, match="different ping counts"):
+        track_bottom({"port": _side(40), "starboard": _side(30)}, 0.05)
+    assert np.all(np.isfinite(track_bottom(image.sides, 0.05).altitude))
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"tol": -1.0}, "tol must be a number > 0"),
+        ({"max_iter": 0}, "max_iter must be >= 1"),
+        ({"ping_spacing": 0.0}, "ping_spacing (metres) must be > 0"),
+        ({"levels": 2.5}, "levels must be a whole number"),
+        ({"beam": BeamProfile([0.1, 1.0], [1.0, np.nan])}, "NaN or infinite"),
+        ({"beam": {"port": 1}}, "beam must be a BeamProfile or the path"),
+    ],
+    ids=["tol", "max_iter", "ping_spacing", "levels", "nan beam", "dict beam"],
+)
+def test_invert_checks_its_options_first(change, message):
+    with pytest.raises(SonarRasterError) as err:
+        invert(_side(), 0.05, **change)
+    assert message in str(err.value)
+
+
+def test_invert_wants_one_side_and_says_so():
+    with pytest.raises(SonarRasterError, match=r"image\.sides\['starboard'\]"):
+        invert(_image().sides, 0.05)  # type: ignore[arg-type]
+
+
+def test_a_transposed_image_is_an_error_not_an_all_nan_result():
+    rng = np.random.default_rng(0)
+    image = rng.exponential(1.0, (1000, 16))  # 16 "pings" of 1000 bins, transposed
+    image[:, :8] *= 1e-3
+    with pytest.raises(SonarRasterError, match=r"as \(pings, slant-range bins\)"):
+        invert(image, 0.04, ping_spacing=0.1)
+
+
+def test_a_beam_profile_takes_lists_and_invert_takes_its_path(tmp_path: Path):
+    beam = BeamProfile([0.2, 0.6, 1.2], [1.0, 2.0, 1.0])  # lists: kept as arrays
+    assert isinstance(beam.gain, np.ndarray) and beam(np.array([0.4]))[0] == pytest.approx(1.5)
+    beam.save(tmp_path / "beam_profile.json")
+    with pytest.raises(SonarRasterError, match="two equal 1-D lists"):
+        BeamProfile([0.2], [1.0])
+    by_object = invert(_side(), 0.05, ping_spacing=0.1, beam=beam, max_iter=5)
+    by_path = invert(_side(), 0.05, ping_spacing=0.1, beam=tmp_path / "beam_profile.json",
+                     max_iter=5)  # fmt: skip
+    by_folder = invert(_side(), 0.05, ping_spacing=0.1, beam=str(tmp_path), max_iter=5)
+    assert by_object.settings["calibrated"] and by_path.settings["calibrated"]
+    np.testing.assert_array_equal(by_object.elevation, by_path.elevation)
+    np.testing.assert_array_equal(by_object.elevation, by_folder.elevation)
+
+
+def test_apply_effects_checks_its_seed_effects_and_image():
+    image = _image()
+    fx = Effects(speckle="exponential")
+    with pytest.raises(SonarRasterError, match="seed must be >= 0"):
+        apply_effects(image, fx, seed=-1)
+    with pytest.raises(SonarRasterError, match="seed must be a whole number"):
+        apply_effects(image, fx, seed=1.5)  # type: ignore[arg-type]
+    with pytest.raises(SonarRasterError, match="effects must be an Effects"):
+        apply_effects(image, {"speckle": "exponential"})  # type: ignore[arg-type]
+    with pytest.raises(SonarRasterError, match="takes a SonarImage"):
+        apply_effects(image.sides["port"], fx)  # type: ignore[arg-type]
+    a, b = (apply_effects(image, fx, seed=np.int64(3)) for _ in range(2))
+    np.testing.assert_array_equal(a.sides["port"], b.sides["port"])
+
+
+def test_read_xtf_takes_a_pair_or_a_range_of_pings():
+    if not SAMPLE.is_file():
+        pytest.skip(f"{SAMPLE} not present")
+    by_slice = read_xtf(SAMPLE, slice(10, 15))[0].sides["port"]
+    for pings in ((10, 15), range(10, 15)):
+        np.testing.assert_array_equal(read_xtf(SAMPLE, pings)[0].sides["port"], by_slice)
+    with pytest.raises(SonarRasterError, match=r"e\.g\. slice\(0, 100\) or \(0, 100\)"):
+        read_xtf(SAMPLE, 5)  # type: ignore[arg-type]
+
+
+def test_write_products_checks_the_side_and_its_folder(tmp_path: Path):
+    from sonar_raster import write_products
+
+    result = invert(_side(), 0.05, ping_spacing=0.1, max_iter=5)
+    with pytest.raises(SonarRasterError, match="side must be 'port' or 'starboard'"):
+        write_products(result, tmp_path / "a", "Port", 0.05, mesh=False, previews=False)
+    (tmp_path / "file").write_text("mine")
+    with pytest.raises(SonarRasterError, match="is a file; give a folder"):
+        write_products(result, tmp_path / "file", "port", 0.05, mesh=False, previews=False)
+    assert (tmp_path / "file").read_text() == "mine" and not (tmp_path / "a").exists()
