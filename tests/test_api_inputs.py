@@ -154,3 +154,18 @@ def test_write_products_checks_the_side_and_its_folder(tmp_path: Path):
     with pytest.raises(SonarRasterError, match="is a file; give a folder"):
         write_products(result, tmp_path / "file", "port", 0.05, mesh=False, previews=False)
     assert (tmp_path / "file").read_text() == "mine" and not (tmp_path / "a").exists()
+
+
+def test_render_says_when_nothing_returned_and_names_a_misplaced_argument():
+    from sonar_raster import load_scene, render
+    from sonar_raster.errors import InputWarning
+
+    setup = load_scene("flat_calibration")
+    track = setup.trajectory.subset(slice(0, 4))
+    below = Trajectory(track.positions * [1.0, 1.0, -1.0], track.headings, track.roll)
+    with pytest.warns(InputWarning, match="zero everywhere: nothing in the swath returned"):
+        image = render(setup.scene, setup.sonar, below)
+    assert not any(np.any(side) for side in image.sides.values())
+    with pytest.raises(SonarRasterError, match="got SceneSetup where a Scene goes"):
+        render(setup, setup.sonar, track)  # type: ignore[arg-type]
+    assert any(np.any(side) for side in render(setup.scene, setup.sonar, track).sides.values())

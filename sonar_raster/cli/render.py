@@ -439,14 +439,18 @@ def run(args: argparse.Namespace) -> int:
 
 def _rendered(args: argparse.Namespace, setup: Any, effects: Any) -> Any:
     """The scene's image with its track's metadata, and the effects unless there are none."""
+    import numpy as np
+
     image = _render_image(args, setup)
     image.metadata.update(_track_metadata(setup))
     image.metadata.update(setup.notes)
+    echoes = any(np.any(side) for side in image.sides.values())  # else render() said so
     if effects is not None:  # no effects: the renderer's image is written as is
         from ..effects.chain import apply_effects
 
         image = apply_effects(image, effects, seed=args.seed, trajectory=setup.trajectory)
-    _warn_blank(image, effects)
+    if echoes:
+        _warn_blank(image, effects)
     return image
 
 

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
-from ..errors import SonarRasterError
+import numpy as np
+
+from ..errors import InputWarning, SonarRasterError
 from ..image import SonarImage
 from ..scene import Scene
 from ..sonar import Sonar
@@ -80,26 +83,49 @@ def render(
         raise SonarRasterError(f"unknown model {model!r}; use one of {', '.join(MODELS)}")
     if labels and model != "raster":
         raise SonarRasterError(f"labels come from the raster model only, not {model!r}")
+    _check_arguments(scene, sonar, trajectory)
     if model == "reference":
         from .reference import render_reference
 
-        return render_reference(scene, sonar, trajectory, progress=progress, force=force)
-    if model == "coherent":
+        image = render_reference(scene, sonar, trajectory, progress=progress, force=force)
+    elif model == "coherent":
         from .coherent.model import render_coherent, to_raster_units
 
         options = {"backend": backend, "force": force, **dict(coherent or {})}
         image = render_coherent(scene, sonar, trajectory, pulse=pulse, progress=progress, **options)
         if raster_units and image.metadata["facet_area_m2"] > 0:
             image = to_raster_units(image)
-        return image
-    from .gl.raster import render_raster
+    else:
+        from .gl.raster import render_raster
 
-    return render_raster(
-        scene,
-        sonar,
-        trajectory,
-        backend=backend,
-        settings=settings,
-        progress=progress,
-        labels=labels,
-    )
+        image = render_raster(
+            scene,
+            sonar,
+            trajectory,
+            backend=backend,
+            settings=settings,
+            progress=progress,
+            labels=labels,
+        )
+    if not any(np.any(side) for side in image.sides.values()):
+        warnings.warn(
+            "the image is zero everywhere: nothing in the swath returned an echo (is the track "
+            "above the seabed, and the seabed within the sonar's range and beam?)",
+            InputWarning,
+            stacklevel=2,
+        )
+    return image
+
+
+def _check_arguments(scene: Any, sonar: Any, trajectory: Any) -> None:
+    """Each of ``render``'s three positional arguments of its own type, or one line."""
+    for value, kind, hint in (
+        (scene, Scene, "e.g. load_scene(...).scene or build_scene([...])"),
+        (sonar, Sonar, "e.g. load_scene(...).sonar or Sonar(max_range=..., range_bin=...)"),
+        (trajectory, Trajectory, "e.g. load_scene(...).trajectory or Trajectory.straight(...)"),
+    ):
+        if not isinstance(value, kind):
+            raise SonarRasterError(
+                f"render takes (scene, sonar, trajectory): got {type(value).__name__} where a "
+                f"{kind.__name__} goes ({hint})"
+            )
