@@ -162,6 +162,11 @@ class Sonar:
             )
         if not math.isfinite(self.tilt):
             raise SonarRasterError("tilt must be a finite angle")
+        if abs(self.tilt) > math.pi / 2:
+            raise SonarRasterError(
+                f"tilt is in radians, between -pi/2 and pi/2; got {self.tilt!r} (for degrees "
+                f"use math.radians({self.tilt!r}))"
+            )
 
     @property
     def n_bins(self) -> int:

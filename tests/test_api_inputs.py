@@ -169,3 +169,47 @@ def test_render_says_when_nothing_returned_and_names_a_misplaced_argument():
     with pytest.raises(SonarRasterError, match="got SceneSetup where a Scene goes"):
         render(setup, setup.sonar, track)  # type: ignore[arg-type]
     assert any(np.any(side) for side in render(setup.scene, setup.sonar, track).sides.values())
+
+
+def test_lines_levels_looks_tilt_and_xtf_options_are_checked(tmp_path: Path):
+    from sonar_raster.inversion.surface import Line, fit_lines
+    from sonar_raster.io.xtf import write_xtf
+
+    side = _side()
+    track = np.column_stack([np.zeros(40), 0.1 * np.arange(40)])
+    line = Line({"starboard": side}, 0.05, track, np.zeros(40))
+    with pytest.raises(SonarRasterError, match=r"as a list, e\.g\. fit_lines\(\[line\]\)"):
+        fit_lines(line)  # type: ignore[arg-type]
+    with pytest.raises(SonarRasterError, match="levels must be a whole number of 1 or more"):
+        fit_lines([line], levels=0)
+    with pytest.raises(SonarRasterError, match="looks must be 'auto' or a number > 0"):
+        fit_lines([line], looks="Auto")
+    with pytest.raises(SonarRasterError, match=r"tilt is in radians.*math\.radians\(45\)"):
+        Sonar(tilt=45)
+    image, track = _image(), Trajectory.straight((0.0, 0.0, -5.0), 0.0, 0.1, 40)
+    for options, message in (
+        ({"altitude": np.ones(3)}, "one per ping (40), got 3 value(s)"),
+        ({"altitude": -5.0}, "one finite value >= 0"),
+        ({"ping_interval": 0.0}, "ping_interval (seconds) must be > 0"),
+        ({"start_time": -1e12}, "start_time must be >= 0"),
+        ({"origin": (1.0,)}, "origin must be two finite numbers"),
+    ):
+        with pytest.raises(SonarRasterError) as err:
+            write_xtf(tmp_path / "a.xtf", image, track, **options)
+        assert message in str(err.value)
+    with pytest.raises(SonarRasterError, match="name it .xtf"):
+        write_xtf(tmp_path / "a.exr", image, track)
+    assert list(tmp_path.iterdir()) == []
+    assert write_xtf(tmp_path / "a.xtf", image, track, altitude=5.0).is_file()
+
+
+def test_render_survey_takes_one_path_and_refuses_one_twice(tmp_path: Path):
+    from sonar_raster import load_scene, render_survey
+
+    setup = load_scene("flat_calibration")
+    track = setup.trajectory.subset(slice(0, 4))
+    with pytest.raises(SonarRasterError, match="an output is given twice"):
+        render_survey(setup.scene, setup.sonar, track, [tmp_path / "a.exr", tmp_path / "a.exr"])
+    assert list(tmp_path.iterdir()) == []
+    written, _ = render_survey(setup.scene, setup.sonar, track, str(tmp_path / "one.exr"))
+    assert sorted(p.name for p in written) == ["one.exr", "one.json"]

@@ -60,6 +60,7 @@ from typing import Any, BinaryIO
 
 import numpy as np
 
+from .._checks import number, positive
 from ..errors import SonarRasterError
 from ..image import NO_DATA_LEVEL, SonarImage
 from ..sonar import Sonar
@@ -1424,11 +1425,26 @@ def write_xtf(
         for side, values in band.sides.items():
             if not (np.all(np.isfinite(values)) and np.all(values >= 0)):
                 raise SonarRasterError(f"the {side} side has negative or non-finite intensities")
-    alt = np.broadcast_to(np.asarray(0.0 if altitude is None else altitude, float), (pings,))
+    given = np.asarray(0.0 if altitude is None else altitude, float)
+    if given.size not in (1, pings) or not (np.all(np.isfinite(given)) and np.all(given >= 0)):
+        raise SonarRasterError(
+            f"altitude must be one finite value >= 0 or one per ping ({pings}), got "
+            f"{given.size} value(s)" + ("" if np.all(np.isfinite(given)) else " with NaN or inf")
+        )
+    alt = np.broadcast_to(given.reshape(-1) if given.size > 1 else given, (pings,))
+    if ping_interval is not None:
+        positive("ping_interval (seconds)", ping_interval)
+    number("start_time (seconds since 1970)", start_time)
+    if start_time < 0:
+        raise SonarRasterError(f"start_time must be >= 0 (seconds since 1970), got {start_time!r}")
+    if len(tuple(origin)) != 2 or not all(math.isfinite(float(v)) for v in origin):
+        raise SonarRasterError(f"origin must be two finite numbers (x, y), got {origin!r}")
     interval = ping_interval or _listen_time(bands)
     from .commit import commit
 
     final = Path(path)
+    if final.suffix.lower() != ".xtf":
+        raise SonarRasterError(f"cannot write {final} as XTF: name it .xtf")
     if not final.parent.is_dir():
         raise SonarRasterError(f"cannot write {final}: directory {final.parent} does not exist")
 

@@ -146,7 +146,7 @@ def render_survey(
     ----------
     scene, sonar, trajectory
         What to render (see :func:`sonar_raster.render_raster`).
-    outputs : list of path
+    outputs : list of path, or one path
         Files ending in .exr, .png or .xtf (directories must exist); .exr and .png get a JSON
         sidecar.
     chunk_pings : int
@@ -170,7 +170,11 @@ def render_survey(
     summary : dict
         Counters summed over the blocks (draws, skipped draws, triangles drawn) and the blocks.
     """
+    if isinstance(outputs, (str, os.PathLike)):
+        outputs = [outputs]  # one file
     paths = [Path(p) for p in outputs]
+    if len(set(paths)) < len(paths):
+        raise SonarRasterError("an output is given twice; give each file once")
     for path in paths:
         if path.suffix.lower() not in (*sio.SUPPORTED, ".xtf"):
             raise SonarRasterError(f"cannot write {path}: use .exr, .png or .xtf")

@@ -285,6 +285,8 @@ def cell_points(
 
 def check_lines(lines: Sequence[Line]) -> None:
     """One-line errors for lines the fit cannot take."""
+    if isinstance(lines, Line) or not isinstance(lines, Sequence):
+        raise SonarRasterError("give the lines as a list, e.g. fit_lines([line])")
     if not lines:
         raise SonarRasterError("no lines to fit")
     for k, line in enumerate(lines):

@@ -366,6 +366,10 @@ def _setup(lines, looks, z_knot, r_knot, levels, finest=1):
     from ..priors import estimate_looks
 
     check_lines(lines)
+    if isinstance(levels, bool) or not float(levels).is_integer() or levels < 1:
+        raise SonarRasterError(f"levels must be a whole number of 1 or more, not {levels!r}")
+    if not (looks == "auto" or (isinstance(looks, (int, float)) and 0 < looks < math.inf)):
+        raise SonarRasterError(f"looks must be 'auto' or a number > 0, not {looks!r}")
     if isinstance(finest, bool) or not float(finest).is_integer() or finest < 1:
         raise SonarRasterError(f"finest must be a whole number of 1 or more, not {finest!r}")
     finest = int(finest)
