@@ -213,3 +213,16 @@ def test_render_survey_takes_one_path_and_refuses_one_twice(tmp_path: Path):
     assert list(tmp_path.iterdir()) == []
     written, _ = render_survey(setup.scene, setup.sonar, track, str(tmp_path / "one.exr"))
     assert sorted(p.name for p in written) == ["one.exr", "one.json"]
+
+
+def test_a_scene_file_tilt_beyond_the_vertical_is_named_in_degrees(tmp_path: Path):
+    from sonar_raster import load_scene_file
+
+    scene = tmp_path / "s.toml"
+    scene.write_text(
+        '[sonar]\nmax_range = 30.0\ntilt_deg = 100.0\n[seabed]\nkind = "flat"\n'
+        "size = [70.0, 20.0]\n[trajectory]\nstart = [0.0, 0.0]\naltitude = 10.0\n"
+        "spacing = 0.1\npings = 4\n"
+    )
+    with pytest.raises(SonarRasterError, match="tilt_deg must be between -90 and 90 degrees"):
+        load_scene_file(scene)

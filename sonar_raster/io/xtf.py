@@ -1437,7 +1437,11 @@ def write_xtf(
     number("start_time (seconds since 1970)", start_time)
     if start_time < 0:
         raise SonarRasterError(f"start_time must be >= 0 (seconds since 1970), got {start_time!r}")
-    if len(tuple(origin)) != 2 or not all(math.isfinite(float(v)) for v in origin):
+    try:
+        pair = [float(v) for v in origin]
+    except (TypeError, ValueError):
+        pair = []
+    if len(pair) != 2 or not all(math.isfinite(v) for v in pair):
         raise SonarRasterError(f"origin must be two finite numbers (x, y), got {origin!r}")
     interval = ping_interval or _listen_time(bands)
     from .commit import commit

@@ -380,6 +380,11 @@ def _sonar(table: dict, base: Path, ov: Overrides, where: str) -> Sonar:
     tilt_deg = tilt_deg if ov.tilt_deg is None else ov.tilt_deg
     if not (math.isfinite(sound_speed) and sound_speed > 0):
         raise SonarRasterError(f"{where}: sound_speed must be > 0 m/s, got {sound_speed}")
+    if not -90.0 <= tilt_deg <= 90.0:
+        raise SonarRasterError(
+            f"{where}: tilt_deg must be between -90 and 90 degrees below the horizontal, got "
+            f"{tilt_deg:g}"
+        )
     beam_spec = table.pop("beam", None)
     if ov.beamwidth_deg is not None:
         beam_spec = {"kind": "gaussian", "beamwidth_deg": ov.beamwidth_deg}
