@@ -226,3 +226,12 @@ def test_a_scene_file_tilt_beyond_the_vertical_is_named_in_degrees(tmp_path: Pat
     )
     with pytest.raises(SonarRasterError, match="tilt_deg must be between -90 and 90 degrees"):
         load_scene_file(scene)
+
+
+def test_invert_xtf_refuses_a_zero_altitude_instead_of_tracking():
+    from sonar_raster import invert_xtf
+
+    if not SAMPLE.is_file():
+        pytest.skip(f"{SAMPLE} not present")
+    with pytest.raises(SonarRasterError, match=r"altitude \(metres\) must be > 0"):
+        invert_xtf(SAMPLE, pings=slice(0, 10), altitude=0.0, method="profiles")

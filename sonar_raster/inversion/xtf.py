@@ -50,6 +50,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._checks import positive
 from ..errors import SonarRasterError
 from ..image import SonarImage
 from ..io.xtf import XtfNavigation, read_xtf, track_jumps
@@ -171,7 +172,10 @@ def invert_xtf(
     image, nav = read_xtf(path, pings, frequency) if recording is None else recording
     dr = image.sonar.range_bin
     track = track_bottom(image.sides, dr)
-    alt = np.full(image.shape[0], float(altitude)) if altitude else track.altitude
+    if altitude is not None:  # 0 is an error, not "track it"
+        positive("altitude (metres)", altitude)
+    given = None if altitude is None else np.full(image.shape[0], float(altitude))
+    alt = track.altitude if given is None else given
     if ping_spacing is None and nav.valid.sum() >= 2:
         spacing = nav.along_track_spacing()
         ping_spacing = spacing if math.isfinite(spacing) else None
@@ -194,7 +198,7 @@ def invert_xtf(
 
         line = Line.straight(
             slants, dr, ping_spacing or dr,
-            altitude=np.full(image.shape[0], float(altitude)) if altitude else None,
+            altitude=given,
         )  # fmt: skip
         results = invert_lines(
             [line], progress=print if progress else None, **surface_options(options)

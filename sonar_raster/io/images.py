@@ -589,7 +589,8 @@ def checked_sides(image: SonarImage) -> dict[str, np.ndarray]:
             )
         if not np.all(np.isfinite(array)) or np.abs(array).max() > np.finfo(np.float32).max:
             raise SonarRasterError(
-                f"the {name} image has NaN or infinite values (in float32); this is a renderer bug"
+                f"the {name} image has NaN or infinite values (in float32); an image to write "
+                "must be finite (set them to 0, or report it if a render made them)"
             )
     return {name: array.astype(np.float32, copy=False) for name, array in raw.items()}
 
