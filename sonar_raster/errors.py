@@ -8,6 +8,10 @@ class SonarRasterError(ValueError):
     """
 
 
+class SonarRasterTypeError(SonarRasterError, TypeError):
+    """An argument of the wrong type: a :class:`SonarRasterError` that is also a ``TypeError``."""
+
+
 class InputWarning(UserWarning):
     """Input that was read with a repair, or settings that look wrong but can still run.
 

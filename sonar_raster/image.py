@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .errors import SonarRasterError
 from .sonar import Sonar
 
 #: Intensities at or above this are no-data markers (float32's largest, 3.4e38; 9.99e37), not
@@ -44,8 +45,6 @@ class SonarImage:
     labels: dict[str, np.ndarray] | None = None
 
     def __post_init__(self) -> None:
-        from .errors import SonarRasterError
-
         if not isinstance(self.sides, Mapping):
             raise SonarRasterError(
                 "SonarImage sides must be a dict such as {'starboard': array of (pings, bins)}"

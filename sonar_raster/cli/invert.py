@@ -6,14 +6,11 @@ import argparse
 from collections.abc import Callable
 from functools import partial
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from .._checks import cli_positive
 from ..errors import SonarRasterError
 from .track import add_xtf_frequency, parse_pings, parse_xtf_frequency
-
-if TYPE_CHECKING:
-    from ..inversion.solver import BeamProfile
 
 
 def _looks(text: str) -> float | str | None:
@@ -192,7 +189,9 @@ def run(args: argparse.Namespace) -> int:
     images = list(args.image) if isinstance(args.image, (list, tuple)) else [args.image]
     xtf = [Path(p).suffix.lower() == ".xtf" for p in images]
     if args.beam:  # read before anything is estimated or loaded: a bad path is the first error
-        surface_beam(args.beam)
+        from ..inversion.solver import load_beams
+
+        load_beams(args.beam)
     if len(images) > 1 or args.lines or args.line_pings:
         if not all(xtf):
             raise SonarRasterError(
@@ -360,6 +359,7 @@ def _invert_surface(args: argparse.Namespace, loaded: tuple | None = None) -> in
     """``invert --method surface``: both sides (or ``--side``) in one fit; ``loaded``: read."""
     import numpy as np
 
+    from ..inversion.solver import load_beams
     from ..inversion.surface import invert_line
     from ..inversion.write import product_jobs
     from ..io.commit import commit
@@ -377,7 +377,7 @@ def _invert_surface(args: argparse.Namespace, loaded: tuple | None = None) -> in
         looks="auto" if args.looks in ("auto", None) else args.looks,
         max_iter=args.max_iter,
         finest=args.coarsen,
-        beam=surface_beam(args.beam) if args.beam else None,
+        beam=load_beams(args.beam) if args.beam else None,
         progress=None if args.quiet else print,
     )
     out = Path(args.output)
@@ -733,8 +733,10 @@ def _line_options(args: argparse.Namespace, beam_profile: Any) -> dict[str, Any]
     Profiles: the solver's; surface: looks, max_iter and the calibrated beam of ``--beam``.
     """
     if args.method == "surface":
+        from ..inversion.solver import load_beams
+
         _refuse_profile_options(args)
-        beam = surface_beam(args.beam) if args.beam else None
+        beam = load_beams(args.beam) if args.beam else None
         return {
             "max_iter": args.max_iter,
             "looks": args.looks,
@@ -755,13 +757,6 @@ def _refuse_coarsen(args: argparse.Namespace) -> None:
         raise SonarRasterError(
             "--coarsen is for --method surface; the profile method's pyramid is --levels"
         )
-
-
-def surface_beam(path: str) -> BeamProfile | dict[str, BeamProfile]:
-    """``--beam`` of the surface fit (:func:`..inversion.solver.load_beams`)."""
-    from ..inversion.solver import load_beams
-
-    return load_beams(path)
 
 
 def _line_jobs(args, out: Path, lines, results, gridded, datum: str) -> list:

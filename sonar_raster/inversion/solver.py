@@ -116,19 +116,31 @@ class BeamProfile:
 
         ``path`` may also be a folder holding one ``beam_profile.json`` (an output folder).
         """
-        if Path(path).is_dir() and (Path(path) / "beam_profile.json").is_file():
-            path = Path(path) / "beam_profile.json"
+        path = Path(path)
+        if path.is_dir():
+            if not (path / "beam_profile.json").is_file():
+                raise SonarRasterError(
+                    f"{path} holds no beam_profile.json (an invert output folder has one per "
+                    "side); give that file or folder"
+                )
+            path = path / "beam_profile.json"
         try:
-            doc = json.loads(Path(path).read_text())
-            dep = np.asarray(doc["depression_rad"], dtype=np.float64)
-            gain = np.asarray(doc["gain"], dtype=np.float64)
+            doc = json.loads(path.read_text())
+            profile = cls(doc["depression_rad"], doc["gain"])  # SonarRasterError: a ValueError
         except (OSError, ValueError, KeyError, TypeError) as exc:
             raise SonarRasterError(f"cannot read beam profile {path}: {exc}") from None
-        if dep.ndim != 1 or dep.shape != gain.shape or dep.size < 2:
-            raise SonarRasterError(f"beam profile {path}: needs two equal lists of >= 2 values")
-        if not (np.all(np.isfinite(dep)) and np.all(np.isfinite(gain)) and np.all(gain >= 0)):
-            raise SonarRasterError(f"beam profile {path}: values must be finite, gain >= 0")
-        return cls(dep, gain)
+        return profile.checked(f"beam profile {path}")
+
+    def checked(self, where: str = "the beam profile") -> BeamProfile:
+        """The profile itself if its values are finite and its gain >= 0, else one line.
+
+        What a profile from a file or a user must be; ``where`` names it in the message.
+        """
+        if not (np.all(np.isfinite(self.depression)) and np.all(np.isfinite(self.gain))):
+            raise SonarRasterError(f"{where} holds NaN or infinite values")
+        if np.any(self.gain < 0):
+            raise SonarRasterError(f"{where}: its gain must be >= 0")
+        return self
 
 
 def load_beams(path: str | os.PathLike) -> BeamProfile | dict[str, BeamProfile]:
@@ -139,22 +151,13 @@ def load_beams(path: str | os.PathLike) -> BeamProfile | dict[str, BeamProfile]:
     ``beam_profile.json`` is read.
     """
     where = Path(path)
-    if not where.is_dir():
-        return BeamProfile.load(where)
     found = {}
-    for side in ("port", "starboard"):
+    for side in ("port", "starboard") if where.is_dir() else ():
         for folder in (where / side, where / "line_1" / side):
             if (folder / "beam_profile.json").is_file():
                 found[side] = BeamProfile.load(folder / "beam_profile.json")
                 break
-    if found:
-        return found
-    if (where / "beam_profile.json").is_file():
-        return BeamProfile.load(where / "beam_profile.json")
-    raise SonarRasterError(
-        f"{where} holds no beam_profile.json (an invert output folder has one per side); "
-        "give that file or folder"
-    )
+    return found or BeamProfile.load(where)
 
 
 @dataclass(frozen=True)
@@ -381,13 +384,9 @@ def invert(
                 f"beam must be a BeamProfile or the path of a beam_profile.json, got "
                 f"{type(beam).__name__}"
             )
-        if not (np.all(np.isfinite(beam.depression)) and np.all(np.isfinite(beam.gain))):
-            raise SonarRasterError("the beam profile holds NaN or infinite values")
-        if np.any(beam.gain < 0):
-            raise SonarRasterError("the beam profile's gain must be >= 0")
+        beam.checked()
     integer("max_iter", max_iter)
-    if not (isinstance(tol, (int, float)) and math.isfinite(tol) and tol > 0):
-        raise SonarRasterError(f"tol must be a number > 0, got {tol!r}")
+    positive("tol", tol)
     if ping_spacing is not None:
         positive("ping_spacing (metres)", ping_spacing)
     if not (math.isfinite(flat_prior) and flat_prior >= 0):

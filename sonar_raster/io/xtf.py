@@ -60,7 +60,7 @@ from typing import Any, BinaryIO
 
 import numpy as np
 
-from .._checks import number, positive
+from .._checks import non_negative, positive
 from ..errors import SonarRasterError
 from ..image import NO_DATA_LEVEL, SonarImage
 from ..sonar import Sonar
@@ -1434,9 +1434,7 @@ def write_xtf(
     alt = np.broadcast_to(given.reshape(-1) if given.size > 1 else given, (pings,))
     if ping_interval is not None:
         positive("ping_interval (seconds)", ping_interval)
-    number("start_time (seconds since 1970)", start_time)
-    if start_time < 0:
-        raise SonarRasterError(f"start_time must be >= 0 (seconds since 1970), got {start_time!r}")
+    non_negative("start_time (seconds since 1970)", start_time)
     try:
         pair = [float(v) for v in origin]
     except (TypeError, ValueError):

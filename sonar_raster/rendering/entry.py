@@ -13,6 +13,7 @@ from ..image import SonarImage
 from ..scene import Scene
 from ..sonar import Sonar
 from ..trajectory import Trajectory
+from .fan import check_inputs
 
 if TYPE_CHECKING:
     from .coherent.pulse import Pulse
@@ -83,7 +84,7 @@ def render(
         raise SonarRasterError(f"unknown model {model!r}; use one of {', '.join(MODELS)}")
     if labels and model != "raster":
         raise SonarRasterError(f"labels come from the raster model only, not {model!r}")
-    _check_arguments(scene, sonar, trajectory)
+    check_inputs(scene, sonar, trajectory)
     if model == "reference":
         from .reference import render_reference
 
@@ -115,17 +116,3 @@ def render(
             stacklevel=2,
         )
     return image
-
-
-def _check_arguments(scene: Any, sonar: Any, trajectory: Any) -> None:
-    """Each of ``render``'s three positional arguments of its own type, or one line."""
-    for value, kind, hint in (
-        (scene, Scene, "e.g. load_scene(...).scene or build_scene([...])"),
-        (sonar, Sonar, "e.g. load_scene(...).sonar or Sonar(max_range=..., range_bin=...)"),
-        (trajectory, Trajectory, "e.g. load_scene(...).trajectory or Trajectory.straight(...)"),
-    ):
-        if not isinstance(value, kind):
-            raise SonarRasterError(
-                f"render takes (scene, sonar, trajectory): got {type(value).__name__} where a "
-                f"{kind.__name__} goes ({hint})"
-            )

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import SonarRasterError
+from ..errors import SonarRasterError, SonarRasterTypeError
 from ..scene import Scene
 from ..sonar import Sonar
 from ..trajectory import Segment, Trajectory
@@ -101,14 +101,24 @@ class Surface:
 
 
 def check_inputs(scene: Scene, sonar: Sonar, trajectory: Trajectory) -> None:
-    """Raise TypeError unless the arguments are a Scene, a Sonar and a Trajectory."""
-    for value, kind, name in (
-        (scene, Scene, "scene"),
-        (sonar, Sonar, "sonar"),
-        (trajectory, Trajectory, "trajectory"),
+    """Raise :class:`SonarRasterTypeError` unless given a Scene, a Sonar and a Trajectory.
+
+    The message says where each comes from (``load_scene(...).scene``, ...).
+    """
+    for value, kind, name, hint in (
+        (scene, Scene, "scene", "load_scene(...).scene or build_scene([...])"),
+        (sonar, Sonar, "sonar", "load_scene(...).sonar or Sonar(max_range=..., range_bin=...)"),
+        (
+            trajectory,
+            Trajectory,
+            "trajectory",
+            "load_scene(...).trajectory or Trajectory.straight(...)",
+        ),
     ):
         if not isinstance(value, kind):
-            raise TypeError(f"{name} must be a {kind.__name__}, got {type(value).__name__}")
+            raise SonarRasterTypeError(
+                f"the {name} must be a {kind.__name__}, got {type(value).__name__} (e.g. {hint})"
+            )
 
 
 def segment_frame(

@@ -811,18 +811,18 @@ def test_beam_reference_holds_a_profile_where_its_angles_reach():
 def test_beam_of_an_earlier_runs_folder(tmp_path):
     """``--beam`` takes a profile file (every side) or the folder of an earlier single-image,
     XTF or survey-lines run (one per side)."""
-    from sonar_raster.cli.invert import surface_beam
+    from sonar_raster.inversion.solver import load_beams
 
     profile = BeamProfile(np.array([0.3, 1.2]), np.array([1.0, 2.0]))
     for folder in ("single/port", "single/starboard", "survey/line_1/port", "one_side"):
         (tmp_path / folder).mkdir(parents=True)
         profile.save(tmp_path / folder / "beam_profile.json")
-    assert set(surface_beam(str(tmp_path / "single"))) == {"port", "starboard"}
-    assert set(surface_beam(str(tmp_path / "survey"))) == {"port"}
-    assert isinstance(surface_beam(str(tmp_path / "one_side")), BeamProfile)
-    assert isinstance(surface_beam(str(tmp_path / "one_side" / "beam_profile.json")), BeamProfile)
+    assert set(load_beams(str(tmp_path / "single"))) == {"port", "starboard"}
+    assert set(load_beams(str(tmp_path / "survey"))) == {"port"}
+    assert isinstance(load_beams(str(tmp_path / "one_side")), BeamProfile)
+    assert isinstance(load_beams(str(tmp_path / "one_side" / "beam_profile.json")), BeamProfile)
     with pytest.raises(SonarRasterError, match="holds no beam_profile.json"):
-        surface_beam(str(tmp_path))
+        load_beams(str(tmp_path))
 
 
 def test_the_flat_start_follows_each_pings_first_return_and_is_level_across():

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy import ndimage, optimize, sparse
 
+from ..._checks import integer
 from ...errors import SonarRasterError
 from ..model import Geometry, deposit_matrix, forward, jacobian_z
 from . import problem as prob
@@ -366,8 +367,7 @@ def _setup(lines, looks, z_knot, r_knot, levels, finest=1):
     from ..priors import estimate_looks
 
     check_lines(lines)
-    if isinstance(levels, bool) or not float(levels).is_integer() or levels < 1:
-        raise SonarRasterError(f"levels must be a whole number of 1 or more, not {levels!r}")
+    integer("levels", levels)
     if not (looks == "auto" or (isinstance(looks, (int, float)) and 0 < looks < math.inf)):
         raise SonarRasterError(f"looks must be 'auto' or a number > 0, not {looks!r}")
     if isinstance(finest, bool) or not float(finest).is_integer() or finest < 1:
