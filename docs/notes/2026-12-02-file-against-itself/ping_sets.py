@@ -1,7 +1,8 @@
 """Speckle contrast and KS of the port side, real and simulated, over three ping sets.
 
 The port side has no wreck, so it can be scored over (a) every ping, (b) the pings the
-starboard statistics keep (the wreck's rows 98-377 left out) and (c) those rows only. Run from
+starboard statistics keep (the wreck's rows 98-377 left out) and (c) those rows only, and the starboard's pings split into the
+start of the file (rows 8-97, high) and its end (rows 378-460, low). Run from
 the repository root: ``python docs/notes/2026-12-02-file-against-itself/ping_sets.py`` (about
 90 s; the default simulation of ``tools/compare_real.py``, seed 0).
 """
@@ -41,7 +42,14 @@ opts = cr.argparse.Namespace(
 _, sim = cr.simulate(real, altitudes, opts, None, None)
 everything = cr.seabed_mask(firsts["port"], real.sides["port"].shape, [], "port")
 kept = cr.seabed_mask(firsts["port"], real.sides["port"].shape, real.hits, "starboard")
-sets = {"every ping": everything, "starboard's pings": kept, "wreck rows only": everything & ~kept}
+rows = np.arange(everything.shape[0])[:, None]
+sets = {
+    "every ping": everything,
+    "starboard's pings": kept,
+    "wreck rows only": everything & ~kept,
+    "rows 8-97": kept & (rows < 98),
+    "rows 378-460": kept & (rows >= 378),
+}
 rng = np.random.default_rng(0)
 images = {"real": real.sides["port"], "sim": sim.sides["port"].astype(np.float64)}
 norms = {k: v / np.maximum(cr.local_mean(v), 1e-30) for k, v in images.items()}
