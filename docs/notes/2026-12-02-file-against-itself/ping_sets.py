@@ -1,10 +1,10 @@
-"""Speckle contrast and KS of the port side, real and simulated, over three ping sets.
+"""Speckle contrast and KS of the port side, real and simulated, over five ping sets.
 
 The port side has no wreck, so it can be scored over (a) every ping, (b) the pings the
-starboard statistics keep (the wreck's rows 98-377 left out) and (c) those rows only, and the starboard's pings split into the
-start of the file (rows 8-97, high) and its end (rows 378-460, low). Run from
+starboard statistics keep (the wreck's rows 98-377 left out), (c) those rows only, and (b)
+split into the start of the file (rows 8-97, high) and its end (rows 378-460, low). Run from
 the repository root: ``python docs/notes/2026-12-02-file-against-itself/ping_sets.py`` (about
-90 s; the default simulation of ``tools/compare_real.py``, seed 0).
+55 s; the default simulation of ``tools/compare_real.py``, seed 0).
 """
 
 import math
