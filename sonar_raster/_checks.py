@@ -10,12 +10,21 @@ from __future__ import annotations
 import argparse
 import math
 import numbers
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
+from difflib import get_close_matches
 from typing import Any
 
 from .errors import SonarRasterError
 
-__all__ = ["cli_positive", "fraction", "integer", "non_negative", "number", "positive"]
+__all__ = [
+    "cli_positive",
+    "did_you_mean",
+    "fraction",
+    "integer",
+    "non_negative",
+    "number",
+    "positive",
+]
 
 
 def number(label: str, value: Any) -> float:
@@ -64,6 +73,17 @@ def integer(label: str, value: Any, minimum: int = 1) -> int:
     if value < minimum:
         raise SonarRasterError(f"{label} must be >= {minimum}, got {value!r}")
     return int(value)
+
+
+def did_you_mean(unknown: Iterable[str], keys: Iterable[str]) -> str:
+    """`` (k: did you mean key?; ...)`` for the unknown keys with a close known one, else ``""``."""
+    known = list(keys)
+    hints = [
+        f"{k}: did you mean {m[0]}?"
+        for k in unknown
+        if isinstance(k, str) and (m := get_close_matches(k, known, 1))
+    ]
+    return f" ({'; '.join(hints)})" if hints else ""
 
 
 def cli_positive(kind: type) -> Callable[[str], Any]:

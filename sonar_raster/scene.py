@@ -47,6 +47,18 @@ class MeshPart:
     is_seabed: bool = False
     law: int = 0
 
+    def __post_init__(self) -> None:
+        what = f"object '{self.name}'"
+        _check_rows(f"{what}: vertices", "(n, 3) coordinates", self.vertices)
+        _check_rows(f"{what}: faces", "(m, 3) vertex indices; triangulate quads", self.faces)
+        m = np.size(self.faces) // 3
+        shape = np.shape(self.reflectivity)
+        if shape not in ((), (1,), (m,)):
+            raise SonarRasterError(
+                f"{what} has {np.size(self.reflectivity)} reflectivity values for {m} faces: "
+                "give one value, or one per face (per vertex: r[faces].mean(axis=1))"
+            )
+
 
 @dataclass(frozen=True)
 class Scene:
@@ -82,7 +94,21 @@ class Scene:
     law: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
+        _check_rows("Scene vertices", "(n, 3) coordinates", self.vertices, empty=False)
+        _check_rows("Scene faces", "(m, 3) vertex indices", self.faces, empty=False)
+        m = len(self.faces)
+        for name in ("reflectivity", "object_id", "law"):
+            values = getattr(self, name)
+            if values is not None and np.shape(values) != (m,):
+                raise SonarRasterError(
+                    f"Scene {name} has {np.size(values)} values for {m} faces: give one per "
+                    "face (build_scene([MeshPart(...), ...]) makes a checked Scene)"
+                )
         if self.bounds is None:
+            if m and (np.min(self.faces) < 0 or np.max(self.faces) >= len(self.vertices)):
+                raise SonarRasterError(
+                    f"Scene faces have a face index outside its {len(self.vertices)} vertices"
+                )
             object.__setattr__(self, "bounds", _bounds(self.vertices, self.faces))
 
     @property
@@ -114,6 +140,13 @@ class Scene:
             self.bounds + offset,
             self.law,
         )
+
+
+def _check_rows(label: str, what: str, values: Any, empty: bool = True) -> None:
+    """Refuse an array that is not (k, 3); with ``empty``, any empty array passes too."""
+    shape = np.shape(values)
+    if not (len(shape) == 2 and shape[1] == 3) and not (empty and np.size(values) == 0):
+        raise SonarRasterError(f"{label} must be {what}, got shape {shape}")
 
 
 def _bounds(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:

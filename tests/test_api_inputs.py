@@ -7,6 +7,8 @@ written as starboard, an all-NaN inversion).
 
 from __future__ import annotations
 
+import math
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +16,7 @@ import pytest
 from conftest import SHARED_DATA
 
 from sonar_raster import BeamProfile, Effects, apply_effects, invert, read_xtf, track_bottom
-from sonar_raster.errors import SonarRasterError
+from sonar_raster.errors import InputWarning, SonarRasterError, SonarRasterTypeError
 from sonar_raster.image import SonarImage
 from sonar_raster.sonar import Sonar
 from sonar_raster.trajectory import Trajectory
@@ -237,3 +239,110 @@ def test_invert_xtf_refuses_a_zero_altitude_instead_of_tracking():
         pytest.skip(f"{SAMPLE} not present")
     with pytest.raises(SonarRasterError, match=r"altitude \(metres\) must be > 0"):
         invert_xtf(SAMPLE, pings=slice(0, 10), altitude=0.0, method="profiles")
+
+
+def test_a_track_out_of_range_of_the_whole_scene_is_named_by_render():
+    from sonar_raster import load_scene, render
+    from sonar_raster.scenes.description import Overrides
+
+    setup = load_scene("flat_calibration", Overrides(altitude=30.0, pings=2))  # max_range 30
+    with pytest.warns(InputWarning, match=r"every ping is 30 m or more above the scene's highest "
+                      r"point, at or beyond the sonar's max_range \(30 m\)"):  # fmt: skip
+        render(setup.scene, setup.sonar, setup.trajectory)
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"speed": -1.0}, "speed (m/s) must be > 0, got -1.0"),
+        ({"speed": 0}, "speed (m/s) must be > 0, got 0"),
+        ({"ping_spacing": math.nan}, "ping_spacing (metres) must be finite, got nan"),
+        ({"beamwidth_deg": math.inf}, "beamwidth_deg (degrees) must be finite, got inf"),
+        ({"heading_deg": math.inf}, "heading_deg (degrees) must be finite, got inf"),
+        ({"altitude": -5.0}, "altitude (metres) must be > 0, got -5.0"),
+        ({"pings": 2.5}, "pings must be a whole number, got 2.5"),
+    ],
+    ids=["negative speed", "zero speed", "nan spacing", "inf beam", "inf heading", "altitude",
+         "pings"],
+)  # fmt: skip
+def test_overrides_name_a_bad_number(change, message):
+    from sonar_raster.scenes.description import Overrides
+
+    with pytest.raises(SonarRasterError) as err:
+        Overrides(**change)
+    assert message in str(err.value)
+
+
+def test_a_part_or_scene_with_arrays_that_do_not_match_is_refused():
+    from sonar_raster import MeshPart, Scene, build_scene
+
+    v = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]])
+    f = np.array([[0, 1, 2], [1, 3, 2]])
+    with pytest.raises(SonarRasterError, match="'plate' has 4 reflectivity values for 2 faces"):
+        MeshPart(v, f, np.full(4, 0.5), "plate")  # one per vertex
+    with pytest.raises(SonarRasterError, match=r"faces must be \(m, 3\) vertex indices"):
+        MeshPart(v, np.array([[0, 1, 3, 2]]), 0.5, "quad")
+    scene = build_scene([MeshPart(v, f, np.array([0.2, 0.4]), "plate")])
+    with pytest.raises(SonarRasterError, match="reflectivity has 3 values for 2 faces"):
+        Scene(scene.vertices, scene.faces, np.ones(3), scene.object_id)
+    with pytest.raises(SonarRasterError, match="a face index outside its 4 vertices"):
+        Scene(v, np.array([[0, 1, 7]]), np.ones(1), np.zeros(1, np.int32))
+
+
+def test_apply_effects_twice_warns_that_the_stages_compound():
+    once = apply_effects(_image(), Effects(speckle="exponential"), seed=1)
+    with pytest.warns(InputWarning, match=r"already has speckle applied \(its metadata"):
+        apply_effects(once, Effects(speckle="exponential", gain_db=3.0), seed=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        apply_effects(once, Effects(gain_db=3.0))  # another stage on top: no warning
+
+
+def test_apply_effects_refuses_a_trajectory_shorter_than_the_image():
+    short = Trajectory.straight((0.0, 0.0, 5.0), 0.0, 0.1, 10)
+    with pytest.raises(SonarRasterError, match="the trajectory has 10 pings, the image 40"):
+        apply_effects(_image(), Effects(along_beam_deg=1.0), trajectory=short)
+    whole = Trajectory.straight((0.0, 0.0, 5.0), 0.0, 0.1, 40)
+    apply_effects(_image(), Effects(along_beam_deg=1.0), trajectory=whole)
+
+
+@pytest.mark.parametrize("settings", [{}, {"oversample": 4.0}], ids=["empty", "dict"])
+def test_a_raster_renderer_checks_its_settings_first(settings):
+    from sonar_raster.rendering.gl.raster import RasterRenderer
+
+    with pytest.raises(SonarRasterTypeError, match=r"settings must be a RasterSettings \(e\.g\."):
+        RasterRenderer(settings=settings)  # type: ignore[arg-type]
+
+
+def test_a_released_renderer_says_so():
+    from sonar_raster.rendering.gl.raster import RasterRenderer
+
+    renderer = RasterRenderer()
+    assert renderer.gl_info["gl_backend"] == renderer.backend
+    renderer.release()
+    with pytest.raises(SonarRasterError, match="this renderer was released; make a new one"):
+        _ = renderer.gl_info
+
+
+def test_a_misspelt_coherent_option_is_named_with_the_nearest():
+    from sonar_raster import load_scene, render
+
+    setup = load_scene("flat_calibration")
+    track = setup.trajectory.subset(slice(0, 2))
+    with pytest.raises(
+        SonarRasterError,
+        match=r"unknown coherent option\(s\) 'seeed'.*"
+        r"spacing_wavelengths, seed, .* \(seeed: did you mean seed\?\)",
+    ):
+        render(setup.scene, setup.sonar, track, model="coherent", coherent={"seeed": 1})
+    with pytest.raises(SonarRasterTypeError, match="coherent must be a dict"):
+        render(setup.scene, setup.sonar, track, model="coherent", coherent=[1])  # type: ignore
+
+
+def test_an_unknown_sensor_name_is_refused_with_the_presets():
+    from sonar_raster.effects import list_presets
+
+    with pytest.raises(SonarRasterError, match="unknown sensor preset 'klein'; known: "):
+        Effects(sensor="klein")
+    fx = Effects(sensor=list_presets()[0])
+    assert fx.sensor == list_presets()[0] and Effects(sensor="ideal").stages == ()

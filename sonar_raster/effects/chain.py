@@ -50,6 +50,7 @@ costs nothing, and with every stage off the input arrays come back untouched:
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
@@ -58,9 +59,10 @@ from typing import Any
 import numpy as np
 
 from .._checks import integer, non_negative, number, positive
-from ..errors import SonarRasterError
+from ..errors import InputWarning, SonarRasterError, SonarRasterTypeError
 from ..image import SonarImage
 from ..sonar import SIDES
+from ..trajectory import Trajectory
 
 #: Stage names in the order they run.
 STAGES = (
@@ -190,9 +192,9 @@ class Effects:
     quantise_amplitude : bool
         Quantise the amplitude √I rather than the intensity.
     sensor : str, optional
-        Name of the sensor preset these effects come from (a label, kept in the metadata). In
-        a table (:meth:`from_table`), ``sensor = NAME`` starts from that preset's effects and
-        ``sensor = "ideal"`` from none.
+        Name of the sensor preset these effects come from (a label, kept in the metadata; an
+        unknown name is refused). In a table (:meth:`from_table`), ``sensor = NAME`` starts
+        from that preset's effects and ``sensor = "ideal"`` from none.
     """
 
     along_beam_deg: float | None = None
@@ -268,6 +270,13 @@ class Effects:
             self._check_water()
         if self.sensor is not None and not isinstance(self.sensor, str):
             raise SonarRasterError(f"effects: sensor must be a preset name, got {self.sensor!r}")
+        if self.sensor is not None and self.sensor != IDEAL:
+            from .presets import preset
+
+            try:
+                preset(self.sensor)
+            except SonarRasterError as exc:
+                raise SonarRasterError(f"effects: {exc}") from None
 
     def _check_numbers(self) -> None:
         """Every numeric field is an int or float (not text), finite, and in its range."""
@@ -701,7 +710,7 @@ def apply_effects(
         ``effects.ping_spacing_m`` is set; default: ``trajectory.typical_spacing``, then
         ``image.metadata["ping_spacing_m"]``.
     trajectory : Trajectory, optional
-        The trajectory the image was rendered along.
+        The trajectory the image was rendered along (at least one pose per ping).
 
     Returns
     -------
@@ -712,7 +721,13 @@ def apply_effects(
     Raises
     ------
     SonarRasterError
-        On an invalid image or a missing ping spacing for the along-track beam.
+        On an invalid image, a trajectory with fewer pings than the image, or a missing ping
+        spacing for the along-track beam.
+
+    Warns
+    -----
+    InputWarning
+        When the image's metadata says a stage that would run was applied to it already.
     """
     fx = effects if effects is not None else Effects()
     if not isinstance(fx, Effects):
@@ -724,7 +739,9 @@ def apply_effects(
         raise SonarRasterError(
             f"apply_effects takes a SonarImage (what render returns), got {type(image).__name__}"
         )
+    _check_trajectory(trajectory, image)
     stages = fx.stages
+    _warn_repeated(image, stages)
     if not stages:
         return SonarImage(
             dict(image.sides), image.sonar, {**image.metadata, "effects": {"stages": []}}
@@ -917,6 +934,38 @@ def _full_scale(fx: Effects, work: dict[str, np.ndarray]) -> float:
             return float(np.median(values)) * 10.0 ** (fx.headroom_db / 10.0)
     top = max(float(np.max(a)) for a in work.values())
     return top if top > 0 else 1.0
+
+
+def _check_trajectory(trajectory: Any, image: SonarImage) -> None:
+    """Refuse a trajectory that is not one, or has fewer pings than the image."""
+    if trajectory is None:
+        return
+    if not isinstance(trajectory, Trajectory):
+        raise SonarRasterTypeError(
+            "trajectory must be the Trajectory the image was rendered along (e.g. "
+            f"load_scene(...).trajectory), got {type(trajectory).__name__}"
+        )
+    pings = image.shape[0] if image.sides else 0
+    if trajectory.n_pings < pings:
+        raise SonarRasterError(
+            f"the trajectory has {trajectory.n_pings} pings, the image {pings}: give the "
+            "trajectory the image was rendered along (or ping_spacing= in metres)"
+        )
+
+
+def _warn_repeated(image: SonarImage, stages: tuple[str, ...]) -> None:
+    """Warn when the image's metadata says some of these stages were applied to it already."""
+    record = image.metadata.get("effects")
+    done = record.get("stages") if isinstance(record, Mapping) else None
+    again = [s for s in stages if isinstance(done, (list, tuple)) and s in done]
+    if again:
+        warnings.warn(
+            f"the image already has {', '.join(again)} applied (its metadata['effects'] says "
+            "so): applying it again compounds it; apply effects once, to the raw image "
+            "render returns",
+            InputWarning,
+            stacklevel=3,
+        )
 
 
 def _check_image(image: SonarImage) -> None:

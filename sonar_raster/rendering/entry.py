@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import inspect
 import warnings
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..errors import InputWarning, SonarRasterError
+from .._checks import did_you_mean
+from ..errors import InputWarning, SonarRasterError, SonarRasterTypeError
 from ..image import SonarImage
 from ..scene import Scene
 from ..sonar import Sonar
@@ -92,7 +94,7 @@ def render(
     elif model == "coherent":
         from .coherent.model import render_coherent, to_raster_units
 
-        options = {"backend": backend, "force": force, **dict(coherent or {})}
+        options = {"backend": backend, "force": force, **_coherent_options(coherent)}
         image = render_coherent(scene, sonar, trajectory, pulse=pulse, progress=progress, **options)
         if raster_units and image.metadata["facet_area_m2"] > 0:
             image = to_raster_units(image)
@@ -109,10 +111,46 @@ def render(
             labels=labels,
         )
     if not any(np.any(side) for side in image.sides.values()):
-        warnings.warn(
-            "the image is zero everywhere: nothing in the swath returned an echo (is the track "
-            "above the seabed, and the seabed within the sonar's range and beam?)",
-            InputWarning,
-            stacklevel=2,
-        )
+        why = _why_blank(scene, sonar, trajectory)
+        warnings.warn(f"the image is zero everywhere: {why}", InputWarning, stacklevel=2)
     return image
+
+
+def _why_blank(scene: Scene, sonar: Sonar, trajectory: Trajectory) -> str:
+    """Why a render returned nothing: the whole scene out of range, else the general causes."""
+    height = float(trajectory.positions[:, 2].min() - scene.bounds[1, 2])
+    if height >= sonar.max_range:
+        return (
+            f"every ping is {height:.4g} m or more above the scene's highest point, at or beyond "
+            f"the sonar's max_range ({sonar.max_range:g} m); lower the altitude or raise max_range"
+        )
+    return (
+        "nothing in the swath returned an echo (is the track above the seabed, and the seabed "
+        "within the sonar's range and beam?)"
+    )
+
+
+def _coherent_options(coherent: Mapping[str, Any] | None) -> dict[str, Any]:
+    """``coherent`` as keyword arguments of ``render_coherent``; an unknown key is named."""
+    from .coherent.model import render_coherent
+
+    if coherent is None:
+        return {}
+    if not isinstance(coherent, Mapping):
+        raise SonarRasterTypeError(
+            "coherent must be a dict of render_coherent's options, e.g. {'seed': 1}, got "
+            f"{type(coherent).__name__}"
+        )
+    own = ("pulse", "progress")  # render's own arguments
+    keys = [
+        name
+        for name, p in inspect.signature(render_coherent).parameters.items()
+        if p.kind is p.KEYWORD_ONLY and name not in own
+    ]
+    unknown = [k for k in coherent if k not in keys]
+    if unknown:
+        raise SonarRasterError(
+            f"unknown coherent option(s) {', '.join(map(repr, unknown))}; the options are "
+            f"{', '.join(keys)}{did_you_mean(unknown, keys)}"
+        )
+    return dict(coherent)

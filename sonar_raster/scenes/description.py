@@ -21,7 +21,8 @@ from typing import Any
 
 import numpy as np
 
-from .._checks import positive
+from .._checks import integer, positive
+from .._checks import number as finite
 from ..errors import InputWarning, SonarRasterError
 from ..meshio.formats import MODEL_SUFFIXES, Y_UP_SUFFIXES, model_suffix
 from ..scene import MeshPart, Scene, build_scene
@@ -155,6 +156,7 @@ class Overrides:
     travel time to the maximum range); ``track`` replaces the track by a recorded one;
     ``placement`` places a bare model file (a description places its objects itself);
     ``micro_relief = False`` leaves out a seabed's ``micro_relief`` (the ideal image).
+    Numbers are checked when made: finite, and > 0 except the tilt and heading.
     """
 
     max_range: float | None = None
@@ -172,6 +174,29 @@ class Overrides:
     track: RecordedTrack | None = None
     placement: Placement | None = None
     micro_relief: bool | None = None
+
+    def __post_init__(self) -> None:
+        for name, unit in _POSITIVE_OVERRIDES.items():
+            if getattr(self, name) is not None:
+                positive(f"{name} ({unit})", getattr(self, name))
+        for name in ("tilt_deg", "heading_deg"):  # any sign; the tilt's range is checked at load
+            if getattr(self, name) is not None:
+                finite(f"{name} (degrees)", getattr(self, name))
+        if self.pings is not None:
+            integer("pings", self.pings)
+
+
+#: Fields of :class:`Overrides` that are None or a finite number > 0, with their units.
+_POSITIVE_OVERRIDES = {
+    "max_range": "metres",
+    "range_bin": "metres",
+    "altitude": "metres",
+    "frequency_hz": "Hz",
+    "beamwidth_deg": "degrees",
+    "sound_speed": "m/s",
+    "ping_spacing": "metres",
+    "speed": "m/s",
+}
 
 
 def load_scene_file(path: str | Path, overrides: Overrides | None = None) -> SceneSetup:

@@ -12,11 +12,10 @@ from __future__ import annotations
 import inspect
 import math
 from collections.abc import Callable
-from difflib import get_close_matches
 
 import numpy as np
 
-from .._checks import non_negative, positive
+from .._checks import did_you_mean, non_negative, positive
 from ..errors import SonarRasterError
 
 Mesh = tuple[np.ndarray, np.ndarray]
@@ -166,12 +165,8 @@ def build_primitive(kind: str, params: dict) -> Mesh:
     keys = list(inspect.signature(builder).parameters)
     unknown = [k for k in params if k not in keys]
     if unknown:
-        hints = [
-            f"{k}: did you mean {m[0]}?" for k in unknown if (m := get_close_matches(k, keys, 1))
-        ]
-        hint = f" ({'; '.join(hints)})" if hints else ""
         raise SonarRasterError(
             f"unknown key(s) {', '.join(map(repr, unknown))} for a {kind}; its keys are "
-            f"{', '.join(keys)}{hint}"
+            f"{', '.join(keys)}{did_you_mean(unknown, keys)}"
         )
     return builder(**params)

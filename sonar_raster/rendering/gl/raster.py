@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from ...errors import SonarRasterError
+from ...errors import SonarRasterError, SonarRasterTypeError
 from ...image import SonarImage
 from ...scene import Scene
 from ...sonar import Sonar
@@ -56,6 +56,7 @@ MAX_TEXELS = 1 << 26  # largest framebuffer per draw (64 M samples, 768 MiB of t
 _FIXED_POINT_TOP = float(1 << 30)
 _GL_DEPTH_CLAMP = 0x864F
 _SPLITS = ("nearest", "linear", "footprint")
+_RELEASED = "this renderer was released; make a new one"
 
 
 @dataclass(frozen=True)
@@ -136,6 +137,11 @@ class RasterRenderer:
     """
 
     def __init__(self, backend: str | None = None, settings: RasterSettings | None = None):
+        if settings is not None and not isinstance(settings, RasterSettings):
+            raise SonarRasterTypeError(
+                "settings must be a RasterSettings (e.g. RasterSettings(oversample=4.0)) or "
+                f"None, got {type(settings).__name__}"
+            )
         self.settings = settings or RasterSettings()
         self.ctx, self.backend = create_context(backend)
         self._programs: dict[str, Any] = {}
@@ -167,6 +173,8 @@ class RasterRenderer:
     @property
     def gl_info(self) -> dict[str, str]:
         """Backend, renderer and version strings of the context."""
+        if self.ctx is None:
+            raise SonarRasterError(_RELEASED)
         return {
             "gl_backend": self.backend,
             "gl_renderer": self.ctx.info["GL_RENDERER"],
@@ -563,7 +571,7 @@ class RasterRenderer:
             counts what the block drew and skipped.
         """
         if self.ctx is None:
-            raise SonarRasterError("this renderer was released; make a new one")
+            raise SonarRasterError(_RELEASED)
         if not (isinstance(chunk_pings, (int, np.integer)) and chunk_pings >= 1):
             raise SonarRasterError(f"chunk_pings must be a positive integer, got {chunk_pings!r}")
         with self.ctx:
