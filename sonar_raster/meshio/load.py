@@ -6,8 +6,11 @@ transform applied; no axis convention is changed (VRML and glTF are y-up by conv
 
 from __future__ import annotations
 
+import dataclasses
+import io
 import logging
 import math
+import re
 from pathlib import Path
 from typing import Any
 
@@ -15,7 +18,7 @@ import numpy as np
 
 from ..errors import SonarRasterError
 from ..scene import MeshPart, clean_faces
-from .formats import MODEL_SUFFIXES, VRML_SUFFIXES
+from .formats import MODEL_SUFFIXES, VRML_SUFFIXES, model_suffix
 from .vrml import load_vrml
 
 log = logging.getLogger(__name__)
@@ -63,11 +66,22 @@ def load_model(path: str | Path) -> list[MeshPart]:
     if not path.is_file():
         what = "is a folder, not a file" if path.is_dir() else "not found"
         raise SonarRasterError(f"model file '{path}' {what}; check the path")
-    parts = load_vrml(path) if name.endswith(VRML_SUFFIXES) else _load_trimesh(path)
-    if not parts:
-        raise SonarRasterError(
-            f"model file '{path.name}' holds no triangles; export the model as a triangle mesh"
-        )
+    suffix = model_suffix(path) or ""
+    try:
+        parts = load_vrml(path) if name.endswith(VRML_SUFFIXES) else _load_trimesh(path)
+        if not parts:
+            raise SonarRasterError(
+                f"model file '{path.name}' holds no triangles; export the model as a triangle mesh"
+            )
+    except SonarRasterError:
+        looks = _content_format(path)
+        if looks is not None and looks[1] != _SAME_FORMAT.get(suffix, suffix):
+            raise SonarRasterError(
+                f"'{path.name}' is not a {suffix} file: its content is {looks[0]}; rename it to "
+                f"end in {looks[1]}"
+            ) from None
+        raise
+    parts = [_outward(part) for part in parts]
     with np.errstate(all="ignore"):  # absurd coordinates overflow here; build_scene says so
         kept = any(clean_faces(p.vertices, p.faces).any() for p in parts)  # as build_scene drops
     if not kept:
@@ -76,6 +90,59 @@ def load_model(path: str | Path) -> list[MeshPart]:
             "to nothing); check the model"
         )
     return parts
+
+
+def _outward(part: MeshPart) -> MeshPart:
+    """``part`` with its faces reversed if it is a closed surface wound inside out.
+
+    The sonar sees a face only from its front, so a closed body whose every face points in
+    (a mirrored CAD export, an STL written clockwise) would be invisible but for its shadow.
+    Closed means every edge is shared by two faces that run along it in opposite directions;
+    such a surface encloses a volume whose sign says which way it is wound. Open surfaces keep
+    the file's winding: nothing in them says which side is the outside.
+    """
+    faces = np.asarray(part.faces, dtype=np.int64)
+    n = max(len(part.vertices), 1)
+    start, end = faces.ravel(), np.roll(faces, -1, axis=1).ravel()
+    edges = start * n + end
+    if len(faces) < 4 or len(np.unique(edges)) < len(edges):
+        return part
+    if not np.all(np.isin(end * n + start, edges)):
+        return part
+    with np.errstate(all="ignore"):  # absurd coordinates: left as they are
+        corners = (part.vertices - part.vertices.mean(axis=0))[faces]
+        volume = np.einsum("ij,ij->", corners[:, 0], np.cross(corners[:, 1], corners[:, 2]))
+    if not volume < 0:
+        return part
+    return dataclasses.replace(part, faces=faces[:, ::-1].copy())
+
+
+#: What a model file's first bytes are, tried in order: (pattern, what it is, its ending).
+_SIGNATURES = (
+    (rb"glTF", "binary glTF", ".glb"),
+    (rb"\x1f\x8b", "gzip-compressed (gzipped VRML is named .wrl.gz)", ".wrl.gz"),
+    (rb"(?:\xef\xbb\xbf)?\s*#VRML V2", "VRML97", ".wrl"),
+    (rb"(?:\xef\xbb\xbf)?ply\s", "PLY", ".ply"),
+    (rb"(?:\xef\xbb\xbf)?\s*[CN]?OFF\s", "OFF", ".off"),
+    (rb"(?:\xef\xbb\xbf)?\s*solid[^\n]*\n\s*(?:facet|endsolid)", "ASCII STL", ".stl"),
+    (rb"(?:\xef\xbb\xbf)?\s*\{", "JSON (glTF)", ".gltf"),
+    (rb"(?:\xef\xbb\xbf)?(?:\s*(?:#[^\n]*)?\n)*\s*(?:v|vn|vt|o|g|mtllib)[ \t]", "OBJ", ".obj"),
+)
+#: Endings that name one format.
+_SAME_FORMAT = {".vrml": ".wrl", ".wrz": ".wrl.gz"}
+
+
+def _content_format(path: Path) -> tuple[str, str] | None:
+    """What the file's bytes say it is, and that format's ending; None if they say nothing."""
+    with open(path, "rb") as fh:
+        head = fh.read(1024)
+    for pattern, what, suffix in _SIGNATURES:
+        if re.match(pattern, head):
+            return what, suffix
+    size = path.stat().st_size
+    if size >= 84 and size == 84 + 50 * int.from_bytes(head[80:84], "little"):
+        return "binary STL", ".stl"
+    return None
 
 
 def _load_trimesh(path: Path) -> list[MeshPart]:
@@ -91,7 +158,10 @@ def _load_trimesh(path: Path) -> list[MeshPart]:
         # processed below (:func:`_finite`), which refuses non-finite vertices; trimesh's
         # arithmetic on them (STL normals) is not the user's concern
         with np.errstate(invalid="ignore", over="ignore"):
-            scene = trimesh.load_scene(str(path), process=False, resolver=_resolver(path))
+            source: Any = io.BytesIO(_obj_text(path)) if kind == "OBJ" else str(path)
+            scene = trimesh.load_scene(
+                source, file_type=kind.lower(), process=False, resolver=_resolver(path)
+            )
     except _MissingAsset as exc:
         raise SonarRasterError(
             f"'{path.name}' refers to '{exc.name}', which is not in {path.parent}; put it "
@@ -130,6 +200,21 @@ def _load_trimesh(path: Path) -> list[MeshPart]:
         reflectivity = _reflectivity(scene, node, mesh, path)
         parts.append(MeshPart(vertices, faces, reflectivity, str(node)))
     return parts
+
+
+def _obj_text(path: Path) -> bytes:
+    """The OBJ file's statements one to a line, single-spaced, without comments.
+
+    trimesh finds OBJ statements by a line break and their keyword (``v``, ``f``...), so it
+    loses those after a byte-order mark, a tab, an indent or a lone CR line end, and fails on a
+    comment after a statement; all are valid OBJ that exporters write. Text that is not UTF-8
+    (Latin-1 names) is read
+    with its odd characters replaced.
+    """
+    text = path.read_bytes().decode("utf-8-sig", errors="replace")
+    text = re.sub(r"#[^\r\n]*", "", text)  # comments run to the end of the line
+    text = re.sub(r"[ \t\f\v]+", " ", re.sub(r"\r\n?", "\n", text))
+    return re.sub(r"^ | $", "", text, flags=re.MULTILINE).encode("utf-8")
 
 
 class _MissingAsset(FileNotFoundError):

@@ -165,7 +165,8 @@ def test_vrml_goes_through_the_vrml_reader(tmp_path):
         (
             "glb.gltf",
             b"glTF\x02\x00\x00\x00\xff\xfe",
-            r"not UTF-8 JSON \(a binary glTF is named \.glb",
+            r"'glb\.gltf' is not a \.gltf file: its content is binary glTF; rename it to end in "
+            r"\.glb",
         ),
         (
             "old.gltf",  # trimesh raises NotImplementedError
@@ -359,3 +360,89 @@ def test_absurdly_large_coordinates_do_not_overflow_the_zero_area_check(tmp_path
     box = "Shape { geometry Box {} }"
     path.write_text(f"#VRML V2.0 utf8\nTransform {{ scale 1e200 1e200 1e200 children {box} }}\n")
     assert len(load_model(path)) == 1
+
+
+#: A 2 x 1 x 0.8 m box as OBJ: eight corners, six quads wound outward.
+BOX_OBJ_VERTICES = [f"v {x} {y} {z}" for x in (-1, 1) for y in (-0.5, 0.5) for z in (-0.4, 0.4)]
+BOX_OBJ_FACES = ["f 1 2 4 3", "f 5 7 8 6", "f 1 5 6 2", "f 3 4 8 7", "f 1 3 7 5", "f 2 6 8 4"]
+BOX_OBJ = "\n".join(BOX_OBJ_VERTICES + BOX_OBJ_FACES) + "\n"
+
+
+@pytest.mark.parametrize(
+    ("form", "text"),
+    [
+        ("byte-order mark", "\ufeff" + BOX_OBJ),
+        ("tabs", BOX_OBJ.replace(" ", "\t")),
+        ("indented", "".join(f"  {line}\n" for line in BOX_OBJ.splitlines())),
+        ("comment after a statement", BOX_OBJ.replace("\n", "  # note\n")),
+        ("old Mac line ends", BOX_OBJ.replace("\n", "\r")),
+        ("Latin-1 group name", "g caf\xe9\n" + BOX_OBJ),
+    ],
+)
+def test_obj_text_as_exporters_write_it_keeps_every_statement(tmp_path, form, text):
+    path = tmp_path / "box.obj"
+    path.write_bytes(text.encode("latin-1" if "Latin" in form else "utf-8"))
+    (part,) = load_model(path)
+    assert len(part.faces) == 12
+    np.testing.assert_allclose(bounds(part), [[-1, -0.5, -0.4], [1, 0.5, 0.4]])
+
+
+@pytest.mark.parametrize("suffix", [".stl", ".obj", ".wrl"])
+def test_a_closed_surface_wound_inside_out_is_turned_outward(tmp_path, suffix):
+    inside_out = box((2.0, 1.0, 0.8))
+    inside_out.invert()
+    path = tmp_path / f"inverted{suffix}"
+    if suffix == ".wrl":
+        points = ", ".join(" ".join(map(str, v)) for v in inside_out.vertices)
+        index = " ".join(f"{a} {b} {c} -1" for a, b, c in inside_out.faces)
+        path.write_text(
+            "#VRML V2.0 utf8\nShape { geometry IndexedFaceSet { solid FALSE coord Coordinate "
+            f"{{ point [ {points} ] }} coordIndex [ {index} ] }} }}\n"
+        )
+    else:
+        inside_out.export(path)
+    (part,) = load_model(path)
+    assert_outward(part, np.zeros(3))
+
+
+def test_an_open_surface_keeps_its_winding(tmp_path):
+    half = box((2.0, 1.0, 0.8))
+    half.update_faces(half.face_normals[:, 2] >= 0)  # the lid and the walls, no floor
+    half.invert()
+    path = tmp_path / "open.stl"
+    half.export(path)
+    (part,) = load_model(path)
+    tri = part.vertices[part.faces]
+    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    assert np.all(np.einsum("ij,ij->i", normals, tri.mean(axis=1)) < 0)  # as the file says
+
+
+@pytest.mark.parametrize(
+    ("name", "content", "looks"),
+    [
+        (
+            "model.gltf",
+            b"glTF\x02\x00\x00\x00",
+            r"its content is binary glTF; rename it to end in \.glb",
+        ),
+        (
+            "model.glb",
+            b'{"asset": {"version": "2.0"}}',
+            r"JSON \(glTF\); rename it to end in \.gltf",
+        ),
+        (
+            "model.obj",
+            b"solid part\n  facet normal 0 0 1\n",
+            r"ASCII STL; rename it to end in \.stl",
+        ),
+        ("model.stl", BOX_OBJ.encode(), r"'model\.stl' is not a \.stl file: its content is OBJ"),
+        ("model.obj", b"ply\nformat ascii 1.0\nend_header\n", r"PLY; rename it to end in \.ply"),
+        ("model.obj", b"#VRML V2.0 utf8\nShape {}\n", r"VRML97; rename it to end in \.wrl"),
+        ("model.ply", bytes(80) + (1).to_bytes(4, "little") + bytes(50), r"binary STL"),
+    ],
+)
+def test_a_file_whose_content_is_another_format_says_which(tmp_path, name, content, looks):
+    path = tmp_path / name
+    path.write_bytes(content)
+    with pytest.raises(SonarRasterError, match=looks):
+        load_model(path)
