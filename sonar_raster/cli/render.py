@@ -12,6 +12,7 @@ from typing import Any
 
 from .._checks import cli_positive, cli_seed
 from ..errors import DeprecatedOptionWarning, SonarRasterError
+from ..meshio.formats import MODEL_SUFFIXES
 from .effects_options import (
     add_effect_options,
     apply_sensor_option,
@@ -34,7 +35,7 @@ def add_parser(sub: Any) -> None:
         "render",
         help="render a scene to PNG and/or EXR",
         description="Render a scene description (.toml), a bare model file "
-        "(.wrl .gltf .glb .obj .ply .stl) or a bundled scene by name "
+        f"({' '.join(MODEL_SUFFIXES)}) or a bundled scene by name "
         "(see 'sonar-raster scenes') to sonar images.",
     )
     render.add_argument("scene", help="scene file, model file, or bundled scene name")
