@@ -158,7 +158,8 @@ def _load_trimesh(path: Path) -> list[MeshPart]:
         # processed below (:func:`_finite`), which refuses non-finite vertices; trimesh's
         # arithmetic on them (STL normals) is not the user's concern
         with np.errstate(invalid="ignore", over="ignore"):
-            source: Any = io.BytesIO(_obj_text(path)) if kind == "OBJ" else str(path)
+            text = _obj_text(path) if kind == "OBJ" else b""
+            source: Any = io.BytesIO(text) if kind == "OBJ" else str(path)
             scene = trimesh.load_scene(
                 source, file_type=kind.lower(), process=False, resolver=_resolver(path)
             )
@@ -178,6 +179,9 @@ def _load_trimesh(path: Path) -> list[MeshPart]:
             f"cannot read '{path.name}' as {kind} ({type(exc).__name__}: {detail}); "
             "check the file or re-export it"
         ) from exc
+    # an OBJ without materials gets a placeholder texture from trimesh where it has texture
+    # coordinates (grey 0.39): not the model's, so the default reflectivity instead
+    bare = kind == "OBJ" and re.search(rb"^(?:usemtl|mtllib) ", text, re.MULTILINE) is None
     parts = []
     for node in scene.graph.nodes_geometry:
         matrix, geometry_name = scene.graph[node]
@@ -197,7 +201,7 @@ def _load_trimesh(path: Path) -> list[MeshPart]:
         faces = np.array(mesh.faces, dtype=np.int64)
         if np.linalg.det(matrix[:3, :3]) < 0:  # a mirroring transform turns faces inside out
             faces = faces[:, ::-1].copy()
-        reflectivity = _reflectivity(scene, node, mesh, path)
+        reflectivity = _DEFAULT_REFLECTIVITY if bare else _reflectivity(scene, node, mesh, path)
         parts.append(MeshPart(vertices, faces, reflectivity, str(node)))
     return parts
 

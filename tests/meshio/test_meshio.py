@@ -238,6 +238,17 @@ def test_colour_texture_gives_per_face_reflectivity(tmp_path, suffix):
     assert r[0] == pytest.approx(0.0, abs=0.02) and r[1] > 0.3 * factor
 
 
+def test_obj_with_texture_coordinates_but_no_material_takes_the_default(tmp_path):
+    """trimesh gives such a file a grey placeholder texture (0.39); it is not the model's."""
+    path = tmp_path / "uv_only.obj"
+    path.write_text(
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+        "f 1/1 2/2 4/4\nf 2/2 3/3 4/4\n"
+    )
+    (part,) = load_model(path)
+    np.testing.assert_array_equal(part.reflectivity, 0.5)
+
+
 def test_a_gltf_whose_buffer_is_short_is_one_line(tmp_path):
     files = trimesh.exchange.gltf.export_gltf(trimesh.Scene(box()))  # the JSON and its .bins
     for name, data in files.items():
