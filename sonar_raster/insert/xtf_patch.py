@@ -14,7 +14,6 @@ counts when it has a port or starboard channel), and the result is read back wit
 
 from __future__ import annotations
 
-import ctypes
 import logging
 import shutil
 from collections.abc import Iterator
@@ -24,12 +23,12 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SonarRasterError
-from ..io.xtf import XtfReader, read_xtf
+from ..io.xtf import XtfReader, _BadPacket, read_xtf
 
 __all__ = ["encode_samples", "patch_xtf"]
 
-_FORMAT_DTYPES = {2: np.uint32, 3: np.uint16, 5: np.float32, 8: np.uint8}
-_SIZE_DTYPES = {1: np.uint8, 2: np.uint16, 4: np.uint32}
+#: A ping header's date, time and ping number (bytes 14-31).
+_PING_KEY = slice(14, 32)
 
 
 def encode_samples(values: np.ndarray, dtype: np.dtype, weight: int) -> tuple[np.ndarray, int]:
@@ -60,48 +59,32 @@ def encode_samples(values: np.ndarray, dtype: np.dtype, weight: int) -> tuple[np
     return np.clip(codes, 0, top).astype(dtype), clipped
 
 
-def _sample_dtype(info: object) -> np.dtype:
-    size = int(info.BytesPerSample)  # type: ignore[attr-defined]
-    kind = _FORMAT_DTYPES.get(int(info.SampleFormat)) or _SIZE_DTYPES.get(size)  # type: ignore[attr-defined]
-    if kind is None:
-        raise SonarRasterError(f"XTF sample format {info.SampleFormat} cannot be rewritten")  # type: ignore[attr-defined]
-    return np.dtype(kind)
-
-
 def _patch_packet(
-    buf: bytearray, start: int, reader: XtfReader, new: dict[str, np.ndarray], stored: dict
-) -> tuple[bool, int]:
-    """Replace the side channels' samples of the packet at ``start``; (is a ping, clipped).
+    buf: bytearray, start: int, raw: bytes, reader: XtfReader, new: dict, stored: dict
+) -> tuple[set[str], int]:
+    """Replace the side channels' samples of the packet at ``start``; (its sides, clipped).
 
-    ``stored`` receives each side's values as the file now holds them (encoded, decoded).
+    The channels are found as the reader finds them (:meth:`XtfReader.layout`). ``stored``
+    receives each side's values as the file now holds them (encoded, decoded).
     """
-    import pyxtf
-
-    head = ctypes.sizeof(pyxtf.XTFPingHeader)
-    chan_size = ctypes.sizeof(pyxtf.XTFPingChanHeader)
-    ping = pyxtf.XTFPingHeader.from_buffer_copy(buf, start)
-    info = reader.header.sonar_info
+    _, layout = reader.layout(raw)
     sides = {k: s for s, k in reader.channels.items()}
-    pos, seen, clipped = start + head, False, 0
-    for k in range(min(int(ping.NumChansToFollow), len(info))):
-        chan = pyxtf.XTFPingChanHeader.from_buffer_copy(buf, pos)
-        pos += chan_size
-        count = int(chan.NumSamples) or int(info[k].Reserved)
-        dtype = _sample_dtype(info[k])
-        nbytes = count * int(info[k].BytesPerSample)
-        side = sides.get(int(chan.ChannelNumber))
-        if side is not None:
-            seen = True
-            if side in new:
-                values = new[side][::-1] if side == "port" else new[side]
-                if len(values) * dtype.itemsize != nbytes:
-                    raise SonarRasterError("a patched ping's sample count differs from the file's")
-                samples, n = encode_samples(values, dtype, int(chan.Weight))
-                buf[pos : pos + nbytes] = samples.tobytes()
-                clipped += n
-                decoded = samples.astype(np.float32) * np.float32(2.0 ** -int(chan.Weight))
-                stored[side] = decoded[::-1] if side == "port" else decoded
-        pos += nbytes
+    seen: set[str] = set()
+    clipped = 0
+    for chan, k, pos, count, dtype in layout:
+        side = sides.get(k)
+        if side is None or side in seen:
+            continue
+        seen.add(side)
+        if side in new:
+            values = new[side][::-1] if side == "port" else new[side]
+            if len(values) != count:
+                raise SonarRasterError("a patched ping's sample count differs from the file's")
+            samples, n = encode_samples(values, dtype, int(chan.Weight))
+            buf[start + pos : start + pos + samples.nbytes] = samples.tobytes()
+            clipped += n
+            decoded = samples.astype(np.float32) * np.float32(2.0 ** -int(chan.Weight))
+            stored[side] = decoded[::-1] if side == "port" else decoded
     return seen, clipped
 
 
@@ -141,14 +124,24 @@ def patch_xtf(
         data = bytearray(Path(src).read_bytes())
         index, clipped = 0, 0
         stored: dict[int, dict[str, np.ndarray]] = {}
+        held: tuple[bytes, set[str]] | None = None  # one side of a ping split over packets
         for pos, raw in reader.packets():  # damaged frames count as pings, as the reader has it
             if isinstance(raw, Exception):
                 index += 1
                 continue
+            key = raw[_PING_KEY]  # date, time and ping number: the same for one ping's packets
+            joined = held is not None and held[0] == key
+            index -= int(joined)  # the other side of the ping just counted
             new = samples.get(index, {})
-            is_ping, n = _patch_packet(data, pos, reader, new, stored.setdefault(index, {}))
+            try:
+                sides, n = _patch_packet(data, pos, raw, reader, new, stored.setdefault(index, {}))
+            except _BadPacket:  # a ping the reader skips: left as recorded
+                held, index = None, index + 1
+                continue
             clipped += n
-            index += int(is_ping)
+            part = bool(sides) and len(sides) < len(reader.channels) and not joined
+            held = (key, sides) if part else None
+            index += int(bool(sides))
     with open(dst, "wb") as fh:
         fh.write(data)
     _verify(Path(src), Path(dst), samples, stored, frequency)

@@ -12,7 +12,9 @@ Conventions (checked on the OpenSidescan sample and by the round-trip tests):
   are skipped. A side the header's ``NumberOfSonarChannels`` leaves out is read from an entry
   past the count that describes it (with a sample size), with a warning. With one side known,
   pings that carry more channels than the header describes draw a warning that the others
-  are not read.
+  are not read. A packet's channel is described by the entry its ``ChannelNumber`` names
+  (by its place where the numbers count from 1 or repeat, :meth:`XtfReader.layout`); a ping
+  written as one packet per side is joined.
 - Port samples are stored from far range to nadir, starboard samples from nadir outward (as
   pyxtf's ``concatenate_channel`` assumes); :class:`SonarImage` sides run from range 0 outward.
 - Sample spacing is ``SlantRange / NumSamples`` (or ``TimeDuration · c / 2 / NumSamples`` when
@@ -85,6 +87,7 @@ _SAMPLE_FORMATS = {"float32": (5, 4, np.float32), "uint16": (3, 2, np.uint16)}
 #: Sample type by ``ChanInfo.SampleFormat``, else by ``BytesPerSample`` (as pyxtf reads them).
 _FORMAT_DTYPES = {2: np.uint32, 3: np.uint16, 5: np.float32, 8: np.uint8}
 _SIZE_DTYPES = {1: np.uint8, 2: np.uint16, 4: np.uint32, 8: np.uint64}
+_IBM_FLOAT = 1
 _EPOCH_DAY = datetime.date(1970, 1, 1).toordinal()
 
 #: Largest ``|Weight|`` read: samples are scaled by ``2 ** -Weight``, and beyond this a float32
@@ -247,10 +250,8 @@ class XtfReader:
         try:
             self.header = self._read_header()
             self.channels = _side_channels(self.header, self.path, frequency)
-            # channel k of a packet is described by sonar_info[k]; past the header's count (a
-            # side found beyond it, _side_channels) by ChanInfo[k]
-            self._info = list(self.header.sonar_info)
-            self._info += self.header.ChanInfo[len(self._info) : max(self.channels.values()) + 1]
+            for side, k in self.channels.items():
+                _check_sample_type(self.header.ChanInfo[k], k, side, self.path)
         except BaseException:
             self.close()
             raise
@@ -292,6 +293,7 @@ class XtfReader:
         if self._fh is None:
             raise SonarRasterError(f"{self.path}: the reader is closed")
         index = 0
+        held: XtfPing | None = None  # one side of a ping whose other side may be the next packet
         for offset, raw in self.packets():
             try:
                 if not isinstance(raw, bytes):
@@ -301,9 +303,22 @@ class XtfReader:
                 self.skipped.append(SkippedPing(index, bad.kind, f"{bad.detail} at byte {offset}"))
                 index = self.count = index + 1
                 continue
-            if ping is not None:
+            if ping is None:
+                continue
+            if held is not None and _completes(held, ping):
+                yield _joined(held, ping)  # a recorder writing one channel per packet
+                held = None
+                continue
+            if held is not None:
+                yield held
+                held = None
+            if len(ping.sides) < len(self.channels):
+                held = ping
+            else:
                 yield ping
-                index = self.count = index + 1
+            index = self.count = index + 1
+        if held is not None:
+            yield held
         if index == 0:
             raise SonarRasterError(f"{self.path} has no side-scan pings")
         if len(self.skipped) == index:
@@ -400,8 +415,8 @@ class XtfReader:
         blanked = 0
         spacing: dict[str, float] = {}
         speed = 0.0
-        for chan, data in channels:
-            side = self._side_of(int(chan.ChannelNumber))
+        for chan, k, data in channels:
+            side = self._side_of(k)
             if side is None or side in sides:
                 continue
             if (len(data) != chan.NumSamples and chan.NumSamples > 0) or len(data) == 0:
@@ -419,55 +434,148 @@ class XtfReader:
             raise _BadPacket("spacing", f"sample spacing {shown} m")
         return replace(_make_ping(ping, index, sides, bins[0], speed), blanked=blanked)
 
-    def _decode(self, raw: bytes) -> tuple[Any, list[tuple[Any, np.ndarray]]]:
-        """Ping header and (channel header, samples) pairs, laid out as pyxtf reads them."""
+    def _decode(self, raw: bytes) -> tuple[Any, list[tuple[Any, int, np.ndarray]]]:
+        """Ping header and (channel header, ChanInfo index, samples) of the channels read."""
+        ping, layout = self.layout(raw)
+        channels = []
+        for chan, k, pos, count, dtype in layout:
+            channels.append((chan, k, np.frombuffer(raw, dtype, count, pos)))
+        return ping, channels
+
+    def layout(self, raw: bytes) -> tuple[Any, list[tuple[Any, int, int, int, np.dtype]]]:
+        """The ping header and its channels to read; _BadPacket if they do not fit the packet.
+
+        Per channel: (channel header, ChanInfo index, byte offset of its samples in ``raw``,
+        sample count, sample type).
+
+        A channel is described by the ``ChanInfo`` entry its ``ChannelNumber`` names, unless
+        the packet's numbers count from 1 (1, 2, ... where ChanInfo has no entry for the last)
+        or repeat: then by its place in the packet. Reading stops at a channel no entry
+        describes with a sample size, and once the sides wanted are read.
+        """
         pyxtf = _pyxtf()
         head = ctypes.sizeof(pyxtf.XTFPingHeader)
-        chan_size = ctypes.sizeof(pyxtf.XTFPingChanHeader)
         if len(raw) < head:
             raise _BadPacket("packet", f"{len(raw)} bytes, less than a ping header ({head})")
         ping = pyxtf.XTFPingHeader.from_buffer_copy(raw)
-        info = self._info
         wanted = set(self.channels.values())
-        if int(ping.NumChansToFollow) > len(info) and len(wanted) < 2 and not self._unread_told:
+        count = int(ping.NumChansToFollow)
+        described = [k for k in range(6) if self._described(k)]
+        if count > len(described) and len(wanted) < 2 and not self._unread_told:
             # one side known: a channel the header leaves out may be the other one
             self._unread_told = True
             log.warning(
                 "%s: pings carry %d channels but the header describes %d (the %s side only); "
                 "the others are not read: set their ChanInfo (TypeOfChannel 1 port, 2 "
                 "starboard) to read them",
-                self.path, int(ping.NumChansToFollow), len(info), next(iter(self.channels)),
+                self.path, count, len(described), next(iter(self.channels)),
             )  # fmt: skip
-        channels: list[tuple[Any, np.ndarray]] = []
-        pos = head
-        for k in range(min(int(ping.NumChansToFollow), len(info))):
+        numbers = [int(chan.ChannelNumber) for chan, *_ in self._walk(raw, head, count, None)]
+        by_place = len(set(numbers)) < len(numbers) or (
+            len(numbers) > 1 and numbers == list(range(1, len(numbers) + 1))
+            and not self._described(len(numbers))
+        )  # fmt: skip
+        layout = []
+        for chan, k, pos, n, dtype in self._walk(raw, head, count, not by_place):
+            layout.append((chan, k, pos, n, dtype))
+            if wanted <= {c[1] for c in layout}:
+                break  # both sides read; later channels are not used
+        return ping, layout
+
+    def _walk(
+        self, raw: bytes, pos: int, count: int, by_number: bool | None
+    ) -> Iterator[tuple[Any, int, int, int, np.dtype]]:
+        """The packet's channels from byte ``pos``, as :meth:`layout` gives them.
+
+        Each is described by the ChanInfo entry its number names (``by_number``, where one
+        gives a sample size), else by its place; None: a trial walk by place that stops
+        quietly where the packet does not hold what the entries say.
+        """
+        chan_size = ctypes.sizeof(_pyxtf().XTFPingChanHeader)
+        for place in range(count):
             if pos + chan_size > len(raw):
-                raise _BadPacket("samples", f"channel {k} starts past the packet's end")
-            chan = pyxtf.XTFPingChanHeader.from_buffer_copy(raw, pos)
+                if by_number is None:
+                    return
+                raise _BadPacket("samples", f"channel {place} starts past the packet's end")
+            chan = _pyxtf().XTFPingChanHeader.from_buffer_copy(raw, pos)
             pos += chan_size
-            count = int(chan.NumSamples) or int(info[k].Reserved)
-            size = int(info[k].BytesPerSample)
-            kind = _FORMAT_DTYPES.get(int(info[k].SampleFormat)) or _SIZE_DTYPES.get(size)
-            dtype = np.dtype(kind or np.uint8)
-            if kind is None or size == 0 or (count * size) % dtype.itemsize:
-                raise _BadPacket("samples", f"sample format {info[k].SampleFormat} of {size} bytes")
-            if pos + count * size > len(raw):
+            k = int(chan.ChannelNumber) if by_number else place
+            k = k if self._described(k) else place  # a number no entry has: its place
+            if not self._described(k):
+                return  # no entry gives its sample size: the rest cannot be found
+            info = self.header.ChanInfo[k]
+            n = int(chan.NumSamples) or int(info.Reserved)
+            size, dtype = int(info.BytesPerSample), _sample_dtype(info)
+            if dtype is None or (n * size) % dtype.itemsize:
+                if by_number is None:
+                    return
+                raise _BadPacket("samples", f"sample format {info.SampleFormat} of {size} bytes")
+            if pos + n * size > len(raw):
+                if by_number is None:
+                    return
                 raise _BadPacket(
-                    "samples", f"{count} samples of channel {k} do not fit the packet "
+                    "samples", f"{n} samples of channel {place} do not fit the packet "
                     f"({len(raw) - pos} bytes are left)"
                 )  # fmt: skip
-            data = np.frombuffer(raw, dtype, count * size // dtype.itemsize, pos)
-            pos += count * size
-            channels.append((chan, data))
-            if wanted <= {int(c.ChannelNumber) for c, _ in channels}:
-                break  # both sides read; later channels are not used
-        return ping, channels
+            yield chan, k, pos, n * size // dtype.itemsize, dtype
+            pos += n * size
+
+    def _described(self, k: int) -> bool:
+        """True when ChanInfo entry ``k`` (of the first 6) gives a sample size."""
+        return 0 <= k < 6 and int(self.header.ChanInfo[k].BytesPerSample) > 0
 
     def _side_of(self, channel_number: int) -> str | None:
         for side, k in self.channels.items():
             if k == channel_number:
                 return side
         return None
+
+
+def _sample_dtype(info: Any) -> np.dtype | None:
+    """A ChanInfo entry's sample type: by ``SampleFormat``, else by ``BytesPerSample``.
+
+    None for IBM floats (format 1) and sizes no type has.
+    """
+    code, size = int(info.SampleFormat), int(info.BytesPerSample)
+    kind = _FORMAT_DTYPES.get(code) or (None if code == _IBM_FLOAT else _SIZE_DTYPES.get(size))
+    return None if kind is None else np.dtype(kind)
+
+
+def _check_sample_type(info: Any, k: int, side: str, path: Path) -> None:
+    """An error naming the side channel's sample type when the reader has no such type."""
+    code, size = int(info.SampleFormat), int(info.BytesPerSample)
+    if code == _IBM_FLOAT:
+        raise SonarRasterError(
+            f"{path}: the {side} channel (ChanInfo {k}) holds IBM floating-point samples (XTF "
+            "SampleFormat 1), which are not read; export the file with IEEE float (5) or "
+            "integer samples"
+        )
+    dtype = _sample_dtype(info)
+    if dtype is None or size % dtype.itemsize:
+        raise SonarRasterError(
+            f"{path}: the {side} channel (ChanInfo {k}) has {size}-byte samples of "
+            f"SampleFormat {code}, not an XTF sample type (1, 2 or 4 bytes; 8 bit 8, 16 bit 3, "
+            "32 bit 2, IEEE float 5)"
+        )
+
+
+def _completes(held: XtfPing, ping: XtfPing) -> bool:
+    """True when ``ping`` holds the other side of ``held``: one ping written as two packets."""
+    return (
+        (ping.number, ping.time) == (held.number, held.time)
+        and not ping.sides.keys() & held.sides.keys()
+        and math.isclose(ping.range_bin, held.range_bin, rel_tol=1e-5)
+    )
+
+
+def _joined(held: XtfPing, ping: XtfPing) -> XtfPing:
+    sides = {
+        s: v
+        for s in ("port", "starboard")
+        for v in [{**held.sides, **ping.sides}.get(s)]
+        if v is not None
+    }
+    return replace(held, sides=sides, blanked=held.blanked + ping.blanked)
 
 
 def _file_size(path: Path) -> int:
