@@ -316,14 +316,20 @@ def _check_json(path: Path) -> Any:
 
 
 def _reflectivity(scene: Any, node: str, mesh: Any, path: Path) -> float | np.ndarray:
-    """Node extras, mesh extras, then texture x colour factor, colour factor, else 0.5."""
+    """Node extras, mesh extras, then texture x colour factor, colour factor, else 0.5.
+
+    The colour factor is glTF's ``baseColorFactor`` or an OBJ material's ``Kd`` (RGB mean).
+    """
     transforms = scene.graph.transforms
     parent = transforms.parents.get(node)
     node_extras = transforms.edge_data.get((parent, node), {}).get("metadata") or {}
     for extras in (node_extras, mesh.metadata or {}):
         if "reflectivity" in extras:
             return _checked(extras["reflectivity"], node, path)
-    colour = getattr(getattr(mesh.visual, "material", None), "baseColorFactor", None)
+    material = getattr(mesh.visual, "material", None)
+    colour = getattr(material, "baseColorFactor", None)
+    if colour is None:  # an OBJ's material: its Kd where the .mtl gives one (trimesh keeps it)
+        colour = (getattr(material, "kwargs", None) or {}).get("kd")
     factor = 1.0
     if colour is not None:
         colour = np.asarray(colour)

@@ -229,13 +229,28 @@ def test_colour_texture_gives_per_face_reflectivity(tmp_path, suffix):
     mesh.export(path)
     (part,) = load_model(path)
     r = np.broadcast_to(part.reflectivity, (2,))
-    factor = 128 / 255 if suffix == ".glb" else 1.0  # OBJ keeps no PBR colour factor
+    factor = 128 / 255  # glTF's base colour factor; the OBJ's Kd, which trimesh writes from it
     samples = np.array(
         [[1 / 3] * 3, [2 / 3, 1 / 6, 1 / 6], [1 / 6, 2 / 3, 1 / 6], [1 / 6, 1 / 6, 2 / 3]]
     )
     expected = [factor * np.mean((samples @ uv[face, 0]) >= 0.5) for face in f]
     np.testing.assert_allclose(r, expected, atol=0.02)
     assert r[0] == pytest.approx(0.0, abs=0.02) and r[1] > 0.3 * factor
+
+
+def test_obj_material_colour_sets_reflectivity(tmp_path):
+    """An OBJ material's Kd sets the reflectivity (RGB mean) as glTF's base colour does; a
+    material without Kd, and a missing .mtl, leave the default."""
+    (tmp_path / "m.mtl").write_text("newmtl red\nKd 0.8 0.2 0.2\nnewmtl plain\nNs 10\n")
+    quad = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 4\nf 2 3 4\n"
+    for material, expected in (("red", 0.4), ("plain", 0.5)):
+        path = tmp_path / f"{material}.obj"
+        path.write_text(f"mtllib m.mtl\nusemtl {material}\n{quad}")
+        (part,) = load_model(path)
+        np.testing.assert_allclose(part.reflectivity, expected)
+    path = tmp_path / "nomtl.obj"
+    path.write_text(f"mtllib missing.mtl\nusemtl x\n{quad}")
+    np.testing.assert_allclose(load_model(path)[0].reflectivity, 0.5)
 
 
 def test_obj_with_texture_coordinates_but_no_material_takes_the_default(tmp_path):
