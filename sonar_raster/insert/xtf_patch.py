@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SonarRasterError
-from ..io.xtf import XtfReader, _BadPacket, read_xtf
+from ..io.xtf import BadPacket, XtfReader, read_xtf
 
 __all__ = ["encode_samples", "patch_xtf"]
 
@@ -135,7 +135,7 @@ def patch_xtf(
             new = samples.get(index, {})
             try:
                 sides, n = _patch_packet(data, pos, raw, reader, new, stored.setdefault(index, {}))
-            except _BadPacket:  # a ping the reader skips: left as recorded
+            except BadPacket:  # a ping the reader skips: left as recorded
                 held, index = None, index + 1
                 continue
             clipped += n

@@ -198,8 +198,12 @@ class SkippedPing:
     detail: str
 
 
-class _BadPacket(Exception):
-    """A sonar packet that is not a usable ping, or a damaged frame (``kind``, ``detail``)."""
+class BadPacket(Exception):
+    """A sonar packet that is not a usable ping, or a damaged frame (``kind``, ``detail``).
+
+    Raised by :meth:`XtfReader.layout` (and caught by the reader, which counts the ping as
+    skipped); ``insert`` leaves such a packet as recorded.
+    """
 
     def __init__(self, kind: str, detail: str) -> None:
         super().__init__(detail)
@@ -299,7 +303,7 @@ class XtfReader:
                 if not isinstance(raw, bytes):
                     raise raw
                 ping = self._ping(raw, index)
-            except _BadPacket as bad:
+            except BadPacket as bad:
                 self.skipped.append(SkippedPing(index, bad.kind, f"{bad.detail} at byte {offset}"))
                 index = self.count = index + 1
                 continue
@@ -348,17 +352,17 @@ class XtfReader:
                 return
             bad = None
             if len(head) < start_size:
-                bad = _BadPacket("truncated", f"the file ends {len(head)} bytes into a packet")
+                bad = BadPacket("truncated", f"the file ends {len(head)} bytes into a packet")
             else:
                 start = pyxtf.XTFPacketStart.from_buffer_copy(head)
                 size = int(start.NumBytesThisRecord)
                 if start.MagicNumber != XTF_MAGIC:
-                    bad = _BadPacket("corrupt", "no packet marker (0xFACE)")
+                    bad = BadPacket("corrupt", "no packet marker (0xFACE)")
                 elif size < start_size:
-                    bad = _BadPacket("corrupt", "an empty packet")
+                    bad = BadPacket("corrupt", "an empty packet")
                 elif offset + size > self._size:
                     left = self._size - offset
-                    bad = _BadPacket("truncated", f"a packet of {size} bytes, {left} left")
+                    bad = BadPacket("truncated", f"a packet of {size} bytes, {left} left")
             if bad is not None:
                 # the first packet may sit at byte 1024 whatever the header's channel count says
                 resume = self._next_packet(_FILE_HEADER_BYTES if first else offset + 1)
@@ -409,7 +413,7 @@ class XtfReader:
         return None
 
     def _ping(self, raw: bytes, index: int) -> XtfPing | None:
-        """The ping of a sonar packet, None without side-scan channels; _BadPacket if unusable."""
+        """The ping of a sonar packet, None without side-scan channels; BadPacket if unusable."""
         ping, channels = self._decode(raw)
         sides: dict[str, np.ndarray] = {}
         blanked = 0
@@ -420,7 +424,7 @@ class XtfReader:
             if side is None or side in sides:
                 continue
             if (len(data) != chan.NumSamples and chan.NumSamples > 0) or len(data) == 0:
-                raise _BadPacket("samples", f"{len(data)} of {chan.NumSamples} samples")
+                raise BadPacket("samples", f"{len(data)} of {chan.NumSamples} samples")
             speed = _sound_speed(float(ping.SoundVelocity), chan)
             values, blank = _scaled(data, int(chan.Weight))
             blanked += blank
@@ -431,7 +435,7 @@ class XtfReader:
         bins = list(spacing.values())
         if not all(math.isfinite(b) and b > 0 for b in bins) or max(bins) > min(bins) * (1 + 1e-5):
             shown = " and ".join(f"{b:.4g}" for b in bins)
-            raise _BadPacket("spacing", f"sample spacing {shown} m")
+            raise BadPacket("spacing", f"sample spacing {shown} m")
         return replace(_make_ping(ping, index, sides, bins[0], speed), blanked=blanked)
 
     def _decode(self, raw: bytes) -> tuple[Any, list[tuple[Any, int, np.ndarray]]]:
@@ -443,7 +447,7 @@ class XtfReader:
         return ping, channels
 
     def layout(self, raw: bytes) -> tuple[Any, list[tuple[Any, int, int, int, np.dtype]]]:
-        """The ping header and its channels to read; _BadPacket if they do not fit the packet.
+        """The ping header and its channels to read; BadPacket if they do not fit the packet.
 
         Per channel: (channel header, ChanInfo index, byte offset of its samples in ``raw``,
         sample count, sample type).
@@ -456,7 +460,7 @@ class XtfReader:
         pyxtf = _pyxtf()
         head = ctypes.sizeof(pyxtf.XTFPingHeader)
         if len(raw) < head:
-            raise _BadPacket("packet", f"{len(raw)} bytes, less than a ping header ({head})")
+            raise BadPacket("packet", f"{len(raw)} bytes, less than a ping header ({head})")
         ping = pyxtf.XTFPingHeader.from_buffer_copy(raw)
         wanted = set(self.channels.values())
         count = int(ping.NumChansToFollow)
@@ -496,7 +500,7 @@ class XtfReader:
             if pos + chan_size > len(raw):
                 if by_number is None:
                     return
-                raise _BadPacket("samples", f"channel {place} starts past the packet's end")
+                raise BadPacket("samples", f"channel {place} starts past the packet's end")
             chan = _pyxtf().XTFPingChanHeader.from_buffer_copy(raw, pos)
             pos += chan_size
             k = int(chan.ChannelNumber) if by_number else place
@@ -509,11 +513,11 @@ class XtfReader:
             if dtype is None or (n * size) % dtype.itemsize:
                 if by_number is None:
                     return
-                raise _BadPacket("samples", f"sample format {info.SampleFormat} of {size} bytes")
+                raise BadPacket("samples", f"sample format {info.SampleFormat} of {size} bytes")
             if pos + n * size > len(raw):
                 if by_number is None:
                     return
-                raise _BadPacket(
+                raise BadPacket(
                     "samples", f"{n} samples of channel {place} do not fit the packet "
                     f"({len(raw) - pos} bytes are left)"
                 )  # fmt: skip
@@ -751,11 +755,11 @@ def _scaled(data: np.ndarray, weight: int) -> tuple[np.ndarray, int]:
 
     A few NaN, infinite or huge (:data:`..image.NO_DATA_LEVEL` or more) samples of a float
     channel (at most :data:`MAX_BLANKED` of them; a processing program's "no data") become 0,
-    no echo; more, or any from a weight that overflows, make the packet a _BadPacket, as does a
+    no echo; more, or any from a weight that overflows, make the packet a BadPacket, as does a
     wild weight.
     """
     if abs(weight) > MAX_WEIGHT:
-        raise _BadPacket("Weight", f"Weight {weight}, beyond {MAX_WEIGHT} either way")
+        raise BadPacket("Weight", f"Weight {weight}, beyond {MAX_WEIGHT} either way")
     values = data.astype(np.float32)
     if weight:
         with np.errstate(over="ignore"):
@@ -767,18 +771,18 @@ def _scaled(data: np.ndarray, weight: int) -> tuple[np.ndarray, int]:
     blanked = int(bad.sum())
     if blanked and (data.dtype.kind != "f" or blanked > MAX_BLANKED * len(values)):
         shown = f"{blanked} non-finite or no-data sample values of {len(values)}"
-        raise _BadPacket("samples", shown)
+        raise BadPacket("samples", shown)
     if blanked:
         with np.errstate(invalid="ignore"):  # the file's own, not an overflow of the weight
             bad &= ~(np.abs(data) < NO_DATA_LEVEL)
         if int(bad.sum()) != blanked:
-            raise _BadPacket("samples", "non-finite sample values")
+            raise BadPacket("samples", "non-finite sample values")
         values[bad] = 0.0
     return values, blanked
 
 
 def _ping_time(ping: Any) -> float:
-    """Seconds since 1970 of the ping's date and time fields; _BadPacket if they do not exist."""
+    """Seconds since 1970 of the ping's date and time fields; BadPacket if they do not exist."""
     year, month, day = int(ping.Year), int(ping.Month), int(ping.Day)
     hour, minute, second, hundredths = (
         int(ping.Hour), int(ping.Minute), int(ping.Second), int(ping.HSeconds)
@@ -786,9 +790,9 @@ def _ping_time(ping: Any) -> float:
     try:
         days = datetime.date(year, month, day).toordinal() - _EPOCH_DAY
     except ValueError:
-        raise _BadPacket("time", f"date {year:04d}-{month:02d}-{day:02d}") from None
+        raise BadPacket("time", f"date {year:04d}-{month:02d}-{day:02d}") from None
     if hour > 23 or minute > 59 or second > 60 or hundredths > 99:
-        raise _BadPacket(
+        raise BadPacket(
             "time", f"time of day {hour:02d}:{minute:02d}:{second:02d}.{hundredths:02d}"
         )
     ms = (((days * 24 + hour) * 60 + minute) * 60 + second) * 1000 + 10 * hundredths
