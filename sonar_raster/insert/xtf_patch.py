@@ -124,13 +124,13 @@ def patch_xtf(
         data = bytearray(Path(src).read_bytes())
         index, clipped = 0, 0
         stored: dict[int, dict[str, np.ndarray]] = {}
-        held: tuple[bytes, set[str]] | None = None  # one side of a ping split over packets
+        held: bytes | None = None  # the key of one side of a ping split over packets
         for pos, raw in reader.packets():  # damaged frames count as pings, as the reader has it
             if isinstance(raw, Exception):
                 index += 1
                 continue
             key = raw[_PING_KEY]  # date, time and ping number: the same for one ping's packets
-            joined = held is not None and held[0] == key
+            joined = held == key
             index -= int(joined)  # the other side of the ping just counted
             new = samples.get(index, {})
             try:
@@ -140,7 +140,7 @@ def patch_xtf(
                 continue
             clipped += n
             part = bool(sides) and len(sides) < len(reader.channels) and not joined
-            held = (key, sides) if part else None
+            held = key if part else None
             index += int(bool(sides))
     with open(dst, "wb") as fh:
         fh.write(data)

@@ -464,16 +464,17 @@ class XtfReader:
         ping = pyxtf.XTFPingHeader.from_buffer_copy(raw)
         wanted = set(self.channels.values())
         count = int(ping.NumChansToFollow)
-        described = [k for k in range(6) if self._described(k)]
-        if count > len(described) and len(wanted) < 2 and not self._unread_told:
+        if len(wanted) < 2 and not self._unread_told:
             # one side known: a channel the header leaves out may be the other one
-            self._unread_told = True
-            log.warning(
-                "%s: pings carry %d channels but the header describes %d (the %s side only); "
-                "the others are not read: set their ChanInfo (TypeOfChannel 1 port, 2 "
-                "starboard) to read them",
-                self.path, count, len(described), next(iter(self.channels)),
-            )  # fmt: skip
+            described = sum(map(self._described, range(6)))
+            if count > described:
+                self._unread_told = True
+                log.warning(
+                    "%s: pings carry %d channels but the header describes %d (the %s side "
+                    "only); the others are not read: set their ChanInfo (TypeOfChannel 1 port, "
+                    "2 starboard) to read them",
+                    self.path, count, described, next(iter(self.channels)),
+                )  # fmt: skip
         numbers = [int(chan.ChannelNumber) for chan, *_ in self._walk(raw, head, count, None)]
         by_place = len(set(numbers)) < len(numbers) or (
             len(numbers) > 1 and numbers == list(range(1, len(numbers) + 1))
@@ -495,13 +496,14 @@ class XtfReader:
         gives a sample size), else by its place; None: a trial walk by place that stops
         quietly where the packet does not hold what the entries say.
         """
-        chan_size = ctypes.sizeof(_pyxtf().XTFPingChanHeader)
+        chan_header = _pyxtf().XTFPingChanHeader
+        chan_size = ctypes.sizeof(chan_header)
         for place in range(count):
             if pos + chan_size > len(raw):
                 if by_number is None:
                     return
                 raise BadPacket("samples", f"channel {place} starts past the packet's end")
-            chan = _pyxtf().XTFPingChanHeader.from_buffer_copy(raw, pos)
+            chan = chan_header.from_buffer_copy(raw, pos)
             pos += chan_size
             k = int(chan.ChannelNumber) if by_number else place
             k = k if self._described(k) else place  # a number no entry has: its place
@@ -573,12 +575,9 @@ def _completes(held: XtfPing, ping: XtfPing) -> bool:
 
 
 def _joined(held: XtfPing, ping: XtfPing) -> XtfPing:
-    sides = {
-        s: v
-        for s in ("port", "starboard")
-        for v in [{**held.sides, **ping.sides}.get(s)]
-        if v is not None
-    }
+    """One ping of ``held``'s header and both packets' sides (port first)."""
+    both = {**held.sides, **ping.sides}
+    sides: dict[str, np.ndarray] = {s: both[s] for s in ("port", "starboard") if s in both}
     return replace(held, sides=sides, blanked=held.blanked + ping.blanked)
 
 
