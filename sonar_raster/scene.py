@@ -6,7 +6,8 @@ Conventions: right-handed world, metres, z up. A seabed below the sonar has z < 
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+import math
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -82,6 +83,12 @@ class Scene:
         Min and max corner of the used vertices (computed when not given).
     law : ndarray, shape (m,), uint8, or None
         Scattering law of each face (see :attr:`MeshPart.law`); None: Lambert everywhere.
+    two_sided : ndarray, shape (m,), bool, or None
+        Faces that scatter from both sides: those of an object that is not a closed surface
+        wound outward (an open sheet, a model with faces wound both ways). A closed outward
+        body's faces and the seabed's (turned to face up) are seen from the front only, the
+        only side from which they can be seen. None (a Scene made by hand): every face of an
+        object not named "seabed" (:meth:`two_sided_faces`). :func:`build_scene` sets it.
     """
 
     vertices: np.ndarray
@@ -92,12 +99,13 @@ class Scene:
     ground_z: float = 0.0
     bounds: Any = field(default=None, repr=False)
     law: np.ndarray | None = field(default=None, repr=False)
+    two_sided: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         _check_rows("Scene vertices", "(n, 3) coordinates", self.vertices, empty=False)
         _check_rows("Scene faces", "(m, 3) vertex indices", self.faces, empty=False)
         m = len(self.faces)
-        for name in ("reflectivity", "object_id", "law"):
+        for name in ("reflectivity", "object_id", "law", "two_sided"):
             values = getattr(self, name)
             if values is not None and np.shape(values) != (m,):
                 raise SonarRasterError(
@@ -127,6 +135,40 @@ class Scene:
         norm = np.linalg.norm(cross, axis=1)
         return cross / norm[:, None], 0.5 * norm
 
+    def two_sided_faces(self) -> np.ndarray:
+        """Which faces scatter from both sides, shape (m,) bool (see :attr:`two_sided`)."""
+        if self.two_sided is not None:
+            return np.asarray(self.two_sided, dtype=bool)
+        seabed = np.array([name == "seabed" for name in self.names] or [False])
+        return ~seabed[np.clip(self.object_id, 0, len(seabed) - 1)]
+
+    def with_back_faces(self) -> Scene:
+        """The scene with a reversed copy of every two-sided face appended (same R, law, id).
+
+        For renderers that see a face from its front only (the numpy reference, the coherent
+        model): each copy is the other side of its face, and the copy the ray meets from behind
+        coincides with the face it meets from the front, so one of the two counts.
+        """
+        both = self.two_sided_faces()
+        if not both.any():
+            return self if self.two_sided is not None else replace(self, two_sided=both)
+        extra = np.flatnonzero(both)
+
+        def doubled(values: np.ndarray | None) -> np.ndarray | None:
+            return None if values is None else np.concatenate([values, values[extra]])
+
+        return Scene(
+            self.vertices,
+            np.concatenate([self.faces, self.faces[extra][:, ::-1]]),
+            np.concatenate([self.reflectivity, self.reflectivity[extra]]),
+            np.concatenate([self.object_id, self.object_id[extra]]),
+            self.names,
+            self.ground_z,
+            self.bounds,
+            doubled(self.law),
+            np.zeros(len(self.faces) + len(extra), dtype=bool),
+        )
+
     def translated(self, offset: np.ndarray) -> Scene:
         """Return the scene moved by ``offset`` (metres, shape (3,))."""
         offset = np.asarray(offset, dtype=np.float64)
@@ -139,6 +181,7 @@ class Scene:
             self.ground_z + float(offset[2]),
             self.bounds + offset,
             self.law,
+            self.two_sided,
         )
 
 
@@ -179,6 +222,62 @@ def clean_faces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return keep
 
 
+def closed_volume(vertices: np.ndarray, faces: np.ndarray) -> float | None:
+    """Signed volume enclosed by a closed surface, m³, or None for a surface that is not closed.
+
+    Closed means every edge is shared by two faces that run along it in opposite directions
+    (consistently wound, watertight); the volume is positive when the faces point out.
+    """
+    faces = np.asarray(faces, dtype=np.int64)
+    n = max(len(vertices), 1)
+    start, end = faces.ravel(), np.roll(faces, -1, axis=1).ravel()
+    edges = start * n + end
+    if len(faces) < 4 or len(np.unique(edges)) < len(edges):
+        return None
+    if not np.all(np.isin(end * n + start, edges)):
+        return None
+    with np.errstate(all="ignore"):  # absurd coordinates: the sign may be lost, not the rule
+        corners = (vertices - vertices.mean(axis=0))[faces]
+        return float(np.einsum("ij,ij->", corners[:, 0], np.cross(corners[:, 1], corners[:, 2])))
+
+
+def _repeated(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Faces whose three corners are those of an earlier face, either way round.
+
+    A sheet written twice, once per side, as some exporters make a double-sided surface.
+    """
+    _, vertex_class = np.unique(vertices, axis=0, return_inverse=True)
+    corners = np.sort(vertex_class.reshape(-1)[faces], axis=1)
+    _, first = np.unique(corners, axis=0, return_index=True)
+    repeated = np.ones(len(faces), dtype=bool)
+    repeated[first] = False
+    return repeated
+
+
+def _sides(part: MeshPart, v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, bool, np.ndarray]:
+    """The part's faces wound so that a seabed faces up and a closed body out.
+
+    Also whether they scatter from both sides (see :attr:`Scene.two_sided`) and which of ``f``
+    are kept (a face repeated is kept once).
+    """
+    kept = np.ones(len(f), dtype=bool)
+    if not len(f):
+        return f, False, kept
+    if part.is_seabed:  # a heightfield: its back is never in sight
+        tri = v[f]
+        up = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])[:, 2].sum()
+        return (f[:, ::-1].copy() if up < 0 else f), False, kept
+    kept = ~_repeated(v, f)
+    if not kept.all():
+        log.info("object '%s': %d faces repeated (a double-sided sheet): kept once",
+                 part.name, int((~kept).sum()))  # fmt: skip
+        f = f[kept]
+    volume = closed_volume(v, f)
+    if volume is None or not math.isfinite(volume) or volume == 0:
+        return f, True, kept
+    return (f[:, ::-1].copy() if volume < 0 else f), False, kept
+
+
 def _joined(arrays: list[np.ndarray]) -> np.ndarray:
     """Concatenate, without a copy when there is only one array (large seabeds)."""
     return np.ascontiguousarray(arrays[0]) if len(arrays) == 1 else np.concatenate(arrays)
@@ -205,7 +304,7 @@ def build_scene(parts: list[MeshPart]) -> Scene:
         If there are no triangles, a vertex is NaN or infinite, an index is out of range, or a
         reflectivity is negative or not finite.
     """
-    verts, faces, refl, ids, names, ground, laws = [], [], [], [], [], [], []
+    verts, faces, refl, ids, names, ground, laws, both = [], [], [], [], [], [], [], []
     offset = 0
     dropped = 0
     n_vertices = sum(len(np.asarray(p.vertices).reshape(-1, 3)) for p in parts)
@@ -233,12 +332,15 @@ def build_scene(parts: list[MeshPart]) -> Scene:
         dropped += int((~keep).sum())
         if not keep.all():
             f, r = f[keep], r[keep]
+        f, two_sided, kept = _sides(part, v, f)
+        r = r[kept]
         f = f.astype(index_type, copy=False)
         verts.append(v)
         faces.append(f + index_type(offset) if offset else f)
         refl.append(r)
         ids.append(np.full(len(f), k, dtype=np.int32))
         laws.append(np.full(len(f), part.law, dtype=np.uint8))
+        both.append(np.full(len(f), two_sided))
         names.append(part.name)
         if part.is_seabed and len(f):
             used = np.zeros(len(v), dtype=bool)
@@ -262,4 +364,5 @@ def build_scene(parts: list[MeshPart]) -> Scene:
         ground_z=ground_z,
         bounds=bounds,
         law=_joined(laws) if any(p.law for p in parts) else None,
+        two_sided=_joined(both),
     )

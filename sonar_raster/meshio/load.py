@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import SonarRasterError
-from ..scene import MeshPart, clean_faces
+from ..scene import MeshPart, clean_faces, closed_volume
 from .formats import MODEL_SUFFIXES, VRML_SUFFIXES, model_suffix
 from .vrml import load_vrml
 
@@ -95,26 +95,15 @@ def load_model(path: str | Path) -> list[MeshPart]:
 def _outward(part: MeshPart) -> MeshPart:
     """``part`` with its faces reversed if it is a closed surface wound inside out.
 
-    The sonar sees a face only from its front, so a closed body whose every face points in
-    (a mirrored CAD export, an STL written clockwise) would be invisible but for its shadow.
-    Closed means every edge is shared by two faces that run along it in opposite directions;
-    such a surface encloses a volume whose sign says which way it is wound. Open surfaces keep
-    the file's winding: nothing in them says which side is the outside.
+    A closed body whose every face points in (a mirrored CAD export, an STL written clockwise)
+    is turned outward, as :func:`~sonar_raster.scene.build_scene` would, so that the part a
+    caller gets says which side is outside. Open surfaces keep the file's winding: nothing in
+    them says which side is the outside (they scatter from both sides).
     """
-    faces = np.asarray(part.faces, dtype=np.int64)
-    n = max(len(part.vertices), 1)
-    start, end = faces.ravel(), np.roll(faces, -1, axis=1).ravel()
-    edges = start * n + end
-    if len(faces) < 4 or len(np.unique(edges)) < len(edges):
+    volume = closed_volume(part.vertices, part.faces)
+    if volume is None or not volume < 0:
         return part
-    if not np.all(np.isin(end * n + start, edges)):
-        return part
-    with np.errstate(all="ignore"):  # absurd coordinates: left as they are
-        corners = (part.vertices - part.vertices.mean(axis=0))[faces]
-        volume = np.einsum("ij,ij->", corners[:, 0], np.cross(corners[:, 1], corners[:, 2]))
-    if not volume < 0:
-        return part
-    return dataclasses.replace(part, faces=faces[:, ::-1].copy())
+    return dataclasses.replace(part, faces=np.asarray(part.faces)[:, ::-1].copy())
 
 
 #: What a model file's first bytes are, tried in order: (pattern, what it is, its ending).

@@ -118,6 +118,7 @@ def render_reference(
         estimated over an hour (unless ``force``).
     """
     check_inputs(scene, sonar, trajectory)
+    scene = scene.with_back_faces()  # open sheets scatter from both sides, as in GL
     size = sonar.range_bin / 4.0 if patch_size is None else patch_size
     if not (isinstance(size, (int, float)) and math.isfinite(size) and size > 0):
         raise SonarRasterError(f"patch_size must be a positive number of metres, got {size!r}")

@@ -354,6 +354,7 @@ def render_coherent(
     from ..fan import check_inputs, segment_frame
 
     check_inputs(scene, sonar, trajectory)
+    scene = scene.with_back_faces()  # open sheets scatter from both sides, as in GL
     pulse = Pulse.for_range_bin(sonar.range_bin, sonar.sound_speed) if pulse is None else pulse
     beam_h = (
         HorizontalBeam.for_track(sonar, trajectory) if horizontal_beam is None else horizontal_beam

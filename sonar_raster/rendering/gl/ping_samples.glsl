@@ -148,10 +148,10 @@ float scattering_over_cos(float cos_t) {
 #endif
 }
 
-// Distance along the ray at depression a from `origin` to the triangle's plane (or -1).
-float hit(vec3 origin, float a) {
-    float denom = dot(g_plane.xyz, vec3(0.0, cos(a), -sin(a)));
-    return denom < -1e-9 ? (g_plane.w - dot(g_plane.xyz, origin)) / denom : -1.0;
+// Distance along the ray at depression a from `origin` to the plane (or -1).
+float hit(vec4 plane, vec3 origin, float a) {
+    float denom = dot(plane.xyz, vec3(0.0, cos(a), -sin(a)));
+    return denom < -1e-9 ? (plane.w - dot(plane.xyz, origin)) / denom : -1.0;
 }
 
 void main() {
@@ -159,18 +159,21 @@ void main() {
     float y = (gl_FragCoord.y / rows_per_ping - 0.5) * spacing;
     vec3 origin = y * motion;
     vec3 dir = vec3(0.0, cos(col.x), -sin(col.x));
-    float cos_t = -dot(g_plane.xyz, dir);
-    float t = hit(origin, col.x);
-    if (!(t > 0.0)) t = length(g_q - origin);   // grazing or back face: range of the fragment
+    // A face scatters from whichever side the ray meets (an open sheet, a face wound the wrong
+    // way); the back of a closed body's face never reaches here, its front is nearer.
+    vec4 plane = dot(g_plane.xyz, dir) > 0.0 ? -g_plane : g_plane;
+    float cos_t = -dot(plane.xyz, dir);
+    float t = hit(plane, origin, col.x);
+    if (!(t > 0.0)) t = length(g_q - origin);   // grazing: range of the fragment
     vec4 s = vec4(t, 0.0, 0.0, 0.0);
     if (cos_t > 0.0) {
-        float ta = hit(origin, col.x - col.z);
-        float tb = hit(origin, col.x + col.z);
+        float ta = hit(plane, origin, col.x - col.z);
+        float tb = hit(plane, origin, col.x + col.z);
         float lo = min(t, min(ta > 0.0 ? ta : t, tb > 0.0 ? tb : t));
         float hi = max(t, max(ta, tb));
         // Range is linear in the travel on a plane: dt/du = -(n . motion) / (n . dir). The fans
         // of consecutive rows lie row_width * motion.x apart (their normal is the fore axis).
-        float along = abs(dot(g_plane.xyz, motion) / cos_t) * row_width;
+        float along = abs(dot(plane.xyz, motion) / cos_t) * row_width;
         float w = g_refl * scattering_over_cos(cos_t) * t * col.y * row_width * motion.x;
         s = vec4(0.5 * (lo + hi), hi - lo, along, w);
     }
