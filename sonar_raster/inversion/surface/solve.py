@@ -42,6 +42,7 @@ from .problem import (
     shade_jacobian,
     soft_shadow,
 )
+from .shrink import shrink_relief
 
 if TYPE_CHECKING:
     from ..solver import BeamProfile
@@ -163,6 +164,10 @@ BLOCK_ILU = {"drop_tol": 1e-4, "fill_factor": 10}
 #: the factorisation 2.5 → 2.0 s, the same 18 iterations, the knots' Z std within 0.15 % of
 #: float64's (docs/notes/2026-11-28-fit-speed-2.md).
 UNCERTAINTY_DTYPE = np.float32
+
+#: Shrink the relief the fit's own noise could explain towards its smooth trend (:mod:`.shrink`;
+#: needs the uncertainty).
+SHRINK_RELIEF = True
 
 Progress = Callable[[str], None]
 
@@ -745,7 +750,10 @@ def _results(
         fit.looks[view.side] = view.looks
         fit.position[view.side] = frame.to_world(*view.points)
         if (view.line, view.side) in std:
-            fit.elevation_std[view.side] = std[(view.line, view.side)]
+            fit.elevation_std[view.side] = sd = std[(view.line, view.side)]
+            if SHRINK_RELIEF:
+                knot = problem.grid.z_spacing
+                fit.elevation[view.side] = shrink_relief(z, sd, knot, view.geom.dx, view.geom.dy)
     return [fits[k] for k in sorted(fits)]
 
 
