@@ -238,7 +238,8 @@ def closed_volume(vertices: np.ndarray, faces: np.ndarray) -> float | None:
         return None
     with np.errstate(all="ignore"):  # absurd coordinates: the sign may be lost, not the rule
         corners = (vertices - vertices.mean(axis=0))[faces]
-        return float(np.einsum("ij,ij->", corners[:, 0], np.cross(corners[:, 1], corners[:, 2])))
+        triple = np.einsum("ij,ij->", corners[:, 0], np.cross(corners[:, 1], corners[:, 2]))
+        return float(triple) / 6.0
 
 
 def _repeated(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -264,8 +265,13 @@ def _sides(part: MeshPart, v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, bo
     if not len(f):
         return f, False, kept
     if part.is_seabed:  # a heightfield: its back is never in sight
-        tri = v[f]
-        up = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])[:, 2].sum()
+        up = 0.0  # twice the area the faces project onto the horizontal, signed
+        for a in range(0, len(f), _FACE_BLOCK):  # bounded temporaries on a large seabed
+            b = f[a : a + _FACE_BLOCK]
+            x0, y0 = v[b[:, 0], 0], v[b[:, 0], 1]
+            dx1, dy1 = v[b[:, 1], 0] - x0, v[b[:, 1], 1] - y0
+            dx2, dy2 = v[b[:, 2], 0] - x0, v[b[:, 2], 1] - y0
+            up += float(np.sum(dx1 * dy2 - dy1 * dx2))
         return (f[:, ::-1].copy() if up < 0 else f), False, kept
     kept = ~_repeated(v, f)
     if not kept.all():

@@ -257,9 +257,7 @@ def draw_sample(config: DatasetConfig, seed: int, index: int) -> SampleScene:
         scene.object_id[own],
         scene.names[:1],
         scene.ground_z,
-        None,
-        None,
-        scene.two_sided_faces()[own],
+        two_sided=scene.two_sided_faces()[own],
     )
     start = rot @ np.array([0.0, -0.5 * length, altitude])
     trajectory = Trajectory.straight(tuple(start), heading, spacing, config.pings)

@@ -129,8 +129,7 @@ def build_insert_scene(
     own = full.object_id == 0
     alone = Scene(
         full.vertices, full.faces[own], full.reflectivity[own], full.object_id[own],
-        full.names[:1], full.ground_z, None, None,
-        full.two_sided_faces()[own],
+        full.names[:1], full.ground_z, two_sided=full.two_sided_faces()[own],
     )  # fmt: skip
     return alone, full, dark, rows
 
