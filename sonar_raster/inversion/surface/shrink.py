@@ -2,7 +2,7 @@
 
 The surface fit's Z holds the seabed's relief plus the speckle it could not average out; its
 Laplace standard deviation σ (``solve.elevation_std``) says how large that noise is, cell by
-cell. About a smooth trend (a Gaussian of ``TREND_KNOTS`` Z-knot spacings), each cell's
+cell. About a smooth trend (a near-Gaussian of σ ``TREND_KNOTS`` Z-knot spacings), each cell's
 deviation ``d`` is multiplied by ``min(1, GAIN_SCALE · s² / (s² + σ²))`` (the local Wiener
 gain, scaled), where the relief's own variance ``s² = max(0, mean d² − mean σ²)`` is taken over
 a window of ``WINDOW_KNOTS`` knots: where the fitted relief is no larger than its noise it goes
@@ -62,8 +62,8 @@ def shrink_relief(
     weight = ok.astype(np.float64)
     zf = np.where(ok, z, 0.0)
     sigma = (TREND_KNOTS * knot / dy, TREND_KNOTS * knot / dx)
-    cover = ndimage.gaussian_filter(weight, sigma, mode="nearest")
-    trend = ndimage.gaussian_filter(zf, sigma, mode="nearest") / np.maximum(cover, 1e-12)
+    cover = _near_gaussian(weight, sigma)
+    trend = _near_gaussian(zf, sigma) / np.maximum(cover, 1e-12)
     d = np.where(ok, zf - trend, 0.0)
     noise = np.where(ok, std, 0.0) ** 2
     size = (max(1, round(WINDOW_KNOTS * knot / dy)), max(1, round(WINDOW_KNOTS * knot / dx)))
@@ -73,3 +73,18 @@ def shrink_relief(
     relief = np.maximum(power - floor, 0.0)
     gain = np.minimum(1.0, gain_scale * relief / np.maximum(relief + noise, 1e-30))
     return np.where(ok, trend + gain * d, z)
+
+
+def _near_gaussian(values: np.ndarray, sigma: tuple[float, float]) -> np.ndarray:
+    """A Gaussian filter of std ``sigma`` (samples per axis) as three box filters.
+
+    Three passes of an odd box of ``w`` samples have the variance ``(w² − 1) / 4``; each pass
+    costs the same whatever its width, where ``ndimage.gaussian_filter`` costs its width (9 s a
+    side for 1000 pings × 2000 cells at the coarsened fits' knots, against 0.3 s).
+    """
+    out = values
+    for axis, s in enumerate(sigma):
+        width = 2 * round((np.sqrt(4.0 * s * s + 1.0) - 1.0) / 2.0) + 1
+        for _ in range(3):
+            out = ndimage.uniform_filter1d(out, int(width), axis=axis, mode="nearest")
+    return out
