@@ -22,13 +22,18 @@ Conventions (checked on the OpenSidescan sample and by the round-trip tests):
 - ``SoundVelocity`` holds half the sound speed in many files (750 m/s, the Triton habit): the
   field is doubled when twice it matches ``2 · SlantRange / TimeDuration`` better than the field
   itself, or, without timing, when it is below 1000 m/s. :func:`write_xtf` writes the half.
-- Navigation is ``SensorXcoordinate`` / ``SensorYcoordinate``: longitude / latitude in degrees
+- Navigation is ``SensorXcoordinate`` / ``SensorYcoordinate`` (``ShipXcoordinate`` /
+  ``ShipYcoordinate`` where the sensor's are both 0): longitude / latitude in degrees
   when the file header's ``NavUnits`` is 3, else projected metres (easting, northing), unless
   the fixes contradict the header (none a place on Earth in degrees; or longitudes and
   latitudes that stand still as metres), then the other, with a warning. A ping
-  whose coordinates are both 0 has no navigation. Heading is the compass heading in degrees;
-  roll is positive starboard down; the altitude is ``SensorPrimaryAltitude`` (0 = not known);
-  the sensor depth is ``SensorDepth`` (positive down), so the sensor's z is ``-depth``.
+  whose coordinates are both 0 has no navigation of its own; where the file holds navigation
+  packets (type 42, ``RawXcoordinate`` / ``RawYcoordinate`` with their own time), such a ping
+  takes their position interpolated linearly in time (between two fixes at most
+  :data:`MAX_FIX_GAP` s apart; none beyond the first or last). Heading is the compass
+  heading in degrees; roll is positive starboard down; the altitude is
+  ``SensorPrimaryAltitude`` (0 = not known); the sensor depth is ``SensorDepth`` (positive
+  down), so the sensor's z is ``-depth``.
 
 Field recordings have glitches; a ping is skipped, not the file refused, when its packet is
 framed correctly (marker and length) but a field is impossible: a date or time of day that
@@ -80,6 +85,8 @@ XTF_FILE_FORMAT = 0x7B
 #: Every packet starts with this 16-bit word.
 XTF_MAGIC = 0xFACE
 _SONAR_PACKET = 0
+#: ``XTFHEADER_NAVIGATION``: a time-stamped fix from the navigation source, between pings.
+_NAVIGATION_PACKET = 42
 _PORT, _STARBOARD = 1, 2
 _NAV_DEGREES = 3
 _FILE_HEADER_BYTES = 1024
@@ -107,6 +114,8 @@ NAV_WINDOW = 10
 #: glitches, skipped, in runs of at most this many (and at most a tenth of the pings read);
 #: longer runs mean the sonar's setting changed.
 GLITCH_RUN = 3
+#: Longest time between two navigation packets a ping's position is interpolated across, s.
+MAX_FIX_GAP = 10.0
 #: Plausible depth and altitude, metres (deeper than any ocean is a corrupt field).
 _MAX_DEPTH = 12000.0
 
@@ -266,6 +275,8 @@ class XtfReader:
         self.frequency_hz = frequency * 1e3 if 0.0 < frequency < 1e6 else 0.0
         self.tilt_deg = tilt if 0.0 < tilt < 90.0 else 0.0
         self.skipped: list[SkippedPing] = []
+        #: (time, x, y) of each navigation packet read so far (type 42), in file order.
+        self.fixes: list[tuple[float, float, float]] = []
         self.count = 0
         self._unread_told = False
 
@@ -378,6 +389,10 @@ class XtfReader:
                 first = False
                 continue
             first = False
+            if start.HeaderType == _NAVIGATION_PACKET:
+                fix = _navigation_fix(fh.read(size - start_size), head)
+                if fix is not None:
+                    self.fixes.append(fix)
             if start.HeaderType != _SONAR_PACKET:
                 fh.seek(offset + size)
                 continue
@@ -798,6 +813,28 @@ def _ping_time(ping: Any) -> float:
     return float(ms * 1000) * 1e-6  # as pyxtf's datetime64 in microseconds
 
 
+def _navigation_fix(body: bytes, head: bytes) -> tuple[float, float, float] | None:
+    """(time, x, y) of a navigation packet (type 42), or None when it holds no usable fix."""
+    nav = _pyxtf().XTFHeaderNavigation
+    raw = head + body
+    if len(raw) < ctypes.sizeof(nav):
+        return None
+    packet = nav.from_buffer_copy(raw)
+    x, y = float(packet.RawXcoordinate), float(packet.RawYcoordinate)
+    if (x == 0.0 and y == 0.0) or not (math.isfinite(x) and math.isfinite(y)):
+        return None
+    try:
+        day = datetime.date(int(packet.Year), int(packet.Month), int(packet.Day))
+    except ValueError:
+        return None
+    hour, minute, second = int(packet.Hour), int(packet.Minute), int(packet.Second)
+    micro = int(packet.Microsecond)
+    if hour > 23 or minute > 59 or second > 60 or micro > 999_999:
+        return None
+    seconds = ((day.toordinal() - _EPOCH_DAY) * 24 + hour) * 3600 + minute * 60 + second
+    return float(seconds * 1_000_000 + micro) * 1e-6, x, y  # as _ping_time rounds
+
+
 def _angle(value: float) -> float:
     """Degrees to radians; NaN for a value no angle field holds (non-finite, beyond ±720)."""
     return math.radians(value) if abs(value) <= 720.0 else math.nan
@@ -807,6 +844,8 @@ def _make_ping(
     ping: Any, index: int, sides: dict[str, np.ndarray], range_bin: float, speed: float
 ) -> XtfPing:
     x, y = float(ping.SensorXcoordinate), float(ping.SensorYcoordinate)
+    if x == 0.0 and y == 0.0:  # some recorders fill the ship's position only
+        x, y = float(ping.ShipXcoordinate), float(ping.ShipYcoordinate)
     if x == 0.0 and y == 0.0:
         x = y = math.nan
     altitude, depth = float(ping.SensorPrimaryAltitude), float(ping.SensorDepth)
@@ -1105,6 +1144,7 @@ def read_xtf(
         chosen = range(*keep.indices(reader.count))
         skipped = [s for s in reader.skipped if s.index in chosen]
         channels, units, freq = reader.channels, reader.units, reader.frequency_hz
+        fixes = reader.fixes
         header, tilt = reader.header, reader.tilt_deg
     rows = [p for p in rows if p.index in chosen]
     if not rows:
@@ -1125,7 +1165,7 @@ def read_xtf(
         sides=tuple(sides),
         sound_speed=float(np.median([p.sound_speed for p in rows])),
     )
-    nav = _navigation(rows, units, Path(path))
+    nav = _navigation(rows, units, Path(path), fixes)
     rejected = {rows[k].index: why for k, why in nav.rejected.items()}
     blanked = (sum(p.blanked for p in rows), sum(p.blanked > 0 for p in rows))
     if skipped or rejected or blanked[0]:
@@ -1264,11 +1304,14 @@ def _setting_change(rows: list[XtfPing], keys: list[Any], path: Path) -> str:
     )
 
 
-def _navigation(rows: list[XtfPing], units: str, path: Path) -> XtfNavigation:
+def _navigation(
+    rows: list[XtfPing], units: str, path: Path, fixes: Sequence[tuple[float, float, float]] = ()
+) -> XtfNavigation:
     def col(name: str) -> np.ndarray:
         return np.array([getattr(p, name) for p in rows], dtype=np.float64)
 
     x, y, heading, time = col("x"), col("y"), col("heading"), col("time")
+    _fill_from_fixes(x, y, time, fixes, path)
     units = _fix_units(x, y, time, units, path)
     rejected = _filter_navigation(x, y, heading, time, units)
     return XtfNavigation(
@@ -1284,6 +1327,43 @@ def _navigation(rows: list[XtfPing], units: str, path: Path) -> XtfNavigation:
         valid=np.isfinite(x) & np.isfinite(y),
         rejected=rejected,
     )
+
+
+def _fill_from_fixes(
+    x: np.ndarray,
+    y: np.ndarray,
+    time: np.ndarray,
+    fixes: Sequence[tuple[float, float, float]],
+    path: Path,
+) -> None:
+    """Give pings without a position one from the navigation packets, in place.
+
+    Linear in time between the two fixes around the ping, when they are at most
+    :data:`MAX_FIX_GAP` s apart; a ping before the first fix or after the last keeps none.
+    """
+    missing = ~(np.isfinite(x) & np.isfinite(y))
+    if not fixes or not missing.any():
+        return
+    t, fx, fy = (np.asarray(v, dtype=np.float64) for v in zip(*fixes, strict=True))
+    order = np.argsort(t, kind="stable")
+    t, fx, fy = t[order], fx[order], fy[order]
+    keep = np.concatenate([[True], np.diff(t) > 0])  # one fix per time
+    t, fx, fy = t[keep], fx[keep], fy[keep]
+    after = np.searchsorted(t, time, side="right")  # the first fix later than the ping
+    inside = (after > 0) & (after < len(t))
+    before = np.clip(after - 1, 0, len(t) - 1)
+    nearest = np.minimum(np.abs(time - t[before]), np.abs(time - t[np.clip(after, 0, len(t) - 1)]))
+    at = nearest < 1e-3  # a ping at a fix's time takes it, at the ends too
+    gap = t[np.clip(after, 0, len(t) - 1)] - t[before]
+    usable = missing & ((inside & (gap <= MAX_FIX_GAP)) | at)
+    if not usable.any():
+        return
+    x[usable] = np.interp(time[usable], t, fx)
+    y[usable] = np.interp(time[usable], t, fy)
+    log.info(
+        "%s: positions of %d of %d pings from its %d navigation packets (type 42)",
+        path.name, int(usable.sum()), len(x), len(t),
+    )  # fmt: skip
 
 
 #: Slowest mean speed of a moving vehicle, m/s: a track in metres slower than this whose numbers

@@ -143,3 +143,61 @@ def test_a_sample_type_without_decoder_is_one_clear_error(tmp_path, capsys, size
     assert main(["track", str(path), "-o", str(out)]) == 2
     assert says in capsys.readouterr().err and not out.exists()
     assert not Path(tmp_path / "none").exists()
+
+
+def _zeroed(ping, ship: tuple[float, float] = (0.0, 0.0)):
+    """A copy of the ping header without the sensor's position (the ship's set to ``ship``)."""
+    ping = PING.from_buffer_copy(bytes(ping))
+    ping.SensorXcoordinate = ping.SensorYcoordinate = 0.0
+    ping.ShipXcoordinate, ping.ShipYcoordinate = ship
+    return ping
+
+
+def _fix(ping) -> bytes:
+    """A navigation packet (type 42) at the ping's time and position."""
+    nav = pyxtf.XTFHeaderNavigation()
+    nav.NumBytesThisRecord = ctypes.sizeof(nav)
+    for name in ("Year", "Month", "Day", "Hour", "Minute", "Second"):
+        setattr(nav, name, getattr(ping, name))
+    nav.Microsecond = 10_000 * ping.HSeconds
+    nav.RawXcoordinate, nav.RawYcoordinate = ping.SensorXcoordinate, ping.SensorYcoordinate
+    return bytes(nav)
+
+
+def test_pings_without_a_position_take_the_navigation_packets(tmp_path):
+    """Pings whose headers hold no position, and a navigation packet (type 42) before every
+    fifth ping: each ping takes the fixes' position interpolated in time; the ping before the
+    first fix keeps none. Without the packets no ping has a position."""
+    header, pings = _pings()
+    fixed = [k for k in range(1, PINGS, 5)] + [PINGS - 1]
+    parts, bare = [], []
+    for k, (ping, chans) in enumerate(pings):
+        packet = _packet(_zeroed(ping), chans)
+        parts.append((_fix(ping) if k in fixed else b"") + packet)
+        bare.append(packet)
+    path = tmp_path / "navpackets.xtf"
+    path.write_bytes(bytes(header) + b"".join(parts))
+    _, nav = read_xtf(path)
+    (tmp_path / "bare.xtf").write_bytes(bytes(header) + b"".join(bare))
+    assert not read_xtf(tmp_path / "bare.xtf")[1].valid.any()
+    assert not nav.valid[0] and nav.valid[1:].all()
+    x = np.array([p.SensorXcoordinate for p, _ in pings])
+    y = np.array([p.SensorYcoordinate for p, _ in pings])
+    np.testing.assert_array_equal(nav.x[fixed], x[fixed])
+    np.testing.assert_array_equal(nav.y[fixed], y[fixed])
+    expected = np.interp(nav.time[1:], nav.time[fixed], x[fixed])
+    np.testing.assert_allclose(nav.x[1:], expected, rtol=0, atol=1e-9)
+    assert np.max(np.abs(nav.x[1:] - x[1:])) < 2e-6  # degrees: within 0.15 m of the pings' own
+
+
+def test_a_ping_with_only_the_ship_position_takes_it(tmp_path):
+    header, pings = _pings()
+    packets = [
+        _packet(_zeroed(p, (p.SensorXcoordinate, p.SensorYcoordinate)), ch) for p, ch in pings
+    ]
+    path = tmp_path / "ship.xtf"
+    path.write_bytes(bytes(header) + b"".join(packets))
+    _, nav = read_xtf(path)
+    _, own = read_xtf(SAMPLE, pings=(0, PINGS))
+    np.testing.assert_array_equal(nav.valid, own.valid)
+    np.testing.assert_array_equal(nav.x[own.valid], own.x[own.valid])
