@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -149,10 +149,9 @@ class Scene:
         model): each copy is the other side of its face, and the copy the ray meets from behind
         coincides with the face it meets from the front, so one of the two counts.
         """
-        both = self.two_sided_faces()
-        if not both.any():
-            return self if self.two_sided is not None else replace(self, two_sided=both)
-        extra = np.flatnonzero(both)
+        extra = np.flatnonzero(self.two_sided_faces())
+        if not len(extra):
+            return self
 
         def doubled(values: np.ndarray | None) -> np.ndarray | None:
             return None if values is None else np.concatenate([values, values[extra]])

@@ -1351,11 +1351,9 @@ def _fill_from_fixes(
     t, fx, fy = t[keep], fx[keep], fy[keep]
     after = np.searchsorted(t, time, side="right")  # the first fix later than the ping
     inside = (after > 0) & (after < len(t))
-    before = np.clip(after - 1, 0, len(t) - 1)
-    nearest = np.minimum(np.abs(time - t[before]), np.abs(time - t[np.clip(after, 0, len(t) - 1)]))
-    at = nearest < 1e-3  # a ping at a fix's time takes it, at the ends too
-    gap = t[np.clip(after, 0, len(t) - 1)] - t[before]
-    usable = missing & ((inside & (gap <= MAX_FIX_GAP)) | at)
+    earlier, later = t[np.clip(after - 1, 0, len(t) - 1)], t[np.clip(after, 0, len(t) - 1)]
+    at = np.minimum(np.abs(time - earlier), np.abs(time - later)) < 1e-3  # at a fix, ends too
+    usable = missing & ((inside & (later - earlier <= MAX_FIX_GAP)) | at)
     if not usable.any():
         return
     x[usable] = np.interp(time[usable], t, fx)
