@@ -149,6 +149,8 @@ def _load_trimesh(path: Path) -> list[MeshPart]:
         with np.errstate(invalid="ignore", over="ignore"):
             text = _obj_text(path) if kind == "OBJ" else b""
             source: Any = io.BytesIO(text) if kind == "OBJ" else str(path)
+            if kind == "STL":
+                source = _binary_stl(path) or source
             scene = trimesh.load_scene(
                 source, file_type=kind.lower(), process=False, resolver=_resolver(path)
             )
@@ -193,6 +195,49 @@ def _load_trimesh(path: Path) -> list[MeshPart]:
         reflectivity = _DEFAULT_REFLECTIVITY if bare else _reflectivity(scene, node, mesh, path)
         parts.append(MeshPart(vertices, faces, reflectivity, str(node)))
     return parts
+
+
+#: Bytes of a binary STL's header and triangle count, and of each triangle record.
+_STL_HEAD, _STL_RECORD = 84, 50
+
+
+def _binary_stl(path: Path) -> io.BytesIO | None:
+    """A binary STL whose triangle count disagrees with its size, made whole; else None.
+
+    Exporters pad the file after the last triangle, or leave the count 0; trimesh then reads
+    it as ASCII and fails. Trailing bytes are left out; a count of 0 (or one larger than the
+    file holds) is taken from the size when the records fill the file exactly.
+    """
+    size = path.stat().st_size
+    with open(path, "rb") as fh:
+        head = fh.read(1024)
+    if size < _STL_HEAD + _STL_RECORD or re.match(_SIGNATURES[5][0], head):  # ASCII STL
+        return None
+    count = int.from_bytes(head[80:84], "little")
+    body = size - _STL_HEAD
+    if 0 < count and _STL_RECORD * count <= body:
+        if _STL_RECORD * count == body:
+            return None
+        log.info(
+            "%s: %d bytes after the last of its %d triangles left out",
+            path.name,
+            body - _STL_RECORD * count,
+            count,
+        )
+    elif body % _STL_RECORD == 0:
+        log.info(
+            "%s: triangle count %d in its header, %d in the file; read %d",
+            path.name,
+            count,
+            body // _STL_RECORD,
+            body // _STL_RECORD,
+        )
+        count = body // _STL_RECORD
+    else:
+        return None
+    data = bytearray(path.read_bytes()[: _STL_HEAD + _STL_RECORD * count])
+    data[80:84] = count.to_bytes(4, "little")
+    return io.BytesIO(bytes(data))
 
 
 def _obj_text(path: Path) -> bytes:

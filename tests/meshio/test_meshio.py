@@ -472,3 +472,35 @@ def test_a_file_whose_content_is_another_format_says_which(tmp_path, name, conte
     path.write_bytes(content)
     with pytest.raises(SonarRasterError, match=looks):
         load_model(path)
+
+
+def _binary_stl(tmp_path, name: str, edit) -> SonarRasterError | list:
+    """A binary STL of a box, its bytes changed by ``edit``, loaded (or the error raised)."""
+    data = box().export(file_type="stl")
+    path = tmp_path / name
+    path.write_bytes(edit(data))
+    try:
+        return load_model(path)
+    except SonarRasterError as exc:
+        return exc
+
+
+@pytest.mark.parametrize(
+    ("name", "edit"),
+    [
+        ("padded.stl", lambda d: d + bytes(7)),  # bytes after the last triangle
+        ("zero.stl", lambda d: d[:80] + bytes(4) + d[84:]),  # the count left 0
+        ("over.stl", lambda d: d[:80] + (99).to_bytes(4, "little") + d[84:]),  # a count too large
+        ("solid.stl", lambda d: b"solid by an exporter" + d[20:] + bytes(2)),  # 'solid' header
+    ],
+)
+def test_a_binary_stl_whose_count_disagrees_with_its_size_reads_its_triangles(tmp_path, name, edit):
+    (whole,) = _binary_stl(tmp_path, "whole.stl", lambda d: d)
+    (part,) = _binary_stl(tmp_path, name, edit)
+    np.testing.assert_array_equal(part.vertices[part.faces], whole.vertices[whole.faces])
+
+
+def test_a_binary_stl_cut_inside_a_triangle_is_one_line(tmp_path):
+    error = _binary_stl(tmp_path, "cut.stl", lambda d: d[:80] + bytes(4) + d[84:-20])
+    assert isinstance(error, SonarRasterError)
+    assert "cut.stl" in str(error) and "\n" not in str(error)
