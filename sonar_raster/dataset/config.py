@@ -158,6 +158,8 @@ class SeabedSpec:
     reflectivity: Dist
     params: tuple[tuple[str, Dist], ...]
     micro_relief: Dist | None = None  # a sediment name (or a choice of them): its roughness
+    material: Dist | None = None  # a sediment name (or a choice): its law and reflectivity
+    scattering: str = "apl"  # the material's law: "apl" (APL-UW) or "lambert"
 
 
 @dataclass(frozen=True)
@@ -411,8 +413,25 @@ def _seabed_spec(table: dict, where: str) -> SeabedSpec:
     weight = _number(table.pop("weight", 1.0), f"{where} 'weight'")
     if weight < 0:
         raise SonarRasterError(f"{where}: 'weight' must be >= 0")
+    given = "reflectivity" in table
     reflectivity = parse_dist(table.pop("reflectivity", 0.3), f"{where} 'reflectivity'")
-    relief = _micro_relief_dist(table.pop("micro_relief", None), f"{where} 'micro_relief'")
+    material = _sediment_dist(table.pop("material", None), f"{where} 'material'")
+    scattering = _scattering(table.pop("scattering", None), material, f"{where} 'scattering'")
+    if material is not None and given:
+        raise SonarRasterError(
+            f"{where}: give 'reflectivity' or 'material', not both (a material sets its own)"
+        )
+    relief = table.pop("micro_relief", None)
+    if relief is True and material is None:
+        raise SonarRasterError(
+            f"{where}: micro_relief = true takes the seabed's 'material'; give one, or name "
+            'the sediment (micro_relief = "sand")'
+        )
+    relief = (
+        Dist("fixed", (True,))
+        if relief is True
+        else _sediment_dist(relief, f"{where} 'micro_relief'")
+    )
     valid = set(inspect.signature(getattr(_seabed, kind)).parameters) - set(_SEABED_FIXED)
     fixed = sorted(set(table) & set(_SEABED_FIXED))
     if fixed:
@@ -426,11 +445,24 @@ def _seabed_spec(table: dict, where: str) -> SeabedSpec:
             f"valid: {', '.join(sorted(valid))}"
         )
     params = tuple((k, parse_dist(v, f"{where} '{k}'")) for k, v in table.items())
-    return SeabedSpec(kind, weight, reflectivity, params, relief)
+    return SeabedSpec(kind, weight, reflectivity, params, relief, material, scattering)
 
 
-def _micro_relief_dist(value: Any, where: str) -> Dist | None:
-    """A sediment name or ``{ choice = [names] }`` (see ``scenes.seabed.micro_relief``)."""
+def _scattering(value: Any, material: Dist | None, where: str) -> str:
+    """The material's scattering law: "apl" (the default) or "lambert"."""
+    from ..scenes.sediments import LAWS
+
+    if value is None:
+        return "apl"
+    if material is None:
+        raise SonarRasterError(f"{where}: needs a 'material' (a reflectivity is Lambert's)")
+    if value not in LAWS:
+        raise SonarRasterError(f"{where}: must be one of {', '.join(LAWS)}, got {value!r}")
+    return str(value)
+
+
+def _sediment_dist(value: Any, where: str) -> Dist | None:
+    """A sediment name or ``{ choice = [names] }`` (see ``scenes.sediments.sediment``)."""
     if value is None:
         return None
     from ..scenes.sediments import sediment

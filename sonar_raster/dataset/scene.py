@@ -9,7 +9,7 @@ scene and the track are turned to the drawn compass heading.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -19,6 +19,7 @@ from ..errors import SonarRasterError
 from ..scene import MeshPart, Scene, build_scene
 from ..scenes.objects import build_primitive
 from ..scenes.seabed import MICRO_RESOLUTION_BINS, Heightfield, make_seabed, micro_relief
+from ..scenes.sediments import material_index, material_reflectivity, sediment
 from ..sonar import BeamPattern, Sonar
 from ..trajectory import Trajectory
 from .config import REACH_PAST_ALTITUDE, DatasetConfig, ObjectSpec, allowed, rule
@@ -138,10 +139,18 @@ def _seabed(
 ):
     weights = np.array([s.weight for s in config.seabeds], dtype=np.float64)
     spec = config.seabeds[int(rng.choice(len(weights), p=weights / weights.sum()))]
-    reflectivity = float(spec.reflectivity.draw(rng))
+    material, law = None, 0
+    if spec.material is None:
+        reflectivity = float(spec.reflectivity.draw(rng))
+    else:  # the sediment's own level, and its APL-UW law unless Lambert is asked for
+        material = sediment(str(spec.material.draw(rng))).name
+        reflectivity = material_reflectivity(material)
+        law = 0 if spec.scattering == "lambert" else material_index(material)
     params = {key: dist.draw(rng) for key, dist in spec.params}
     seed = int(rng.integers(2**31))
     record = {"kind": spec.kind, "reflectivity": reflectivity, "seed": seed, **params}
+    if material is not None:
+        record.update(material=material, scattering=spec.scattering)
     x0, x1, y0, y1 = extent
     build = dict(params)
     if spec.kind == "ripples":  # drawn as a world compass direction; built in the track frame
@@ -157,12 +166,13 @@ def _seabed(
         **build,
     )
     if spec.micro_relief is not None:  # the sediment's roughness at the image's scales
-        sediment = str(spec.micro_relief.draw(rng))
+        drawn = spec.micro_relief.draw(rng)
+        rough = material if drawn is True else str(drawn)  # true: the material's roughness
         relief_seed = int(rng.integers(2**31))
         cell = MICRO_RESOLUTION_BINS * range_bin
-        field = micro_relief(field, sediment, resolution=cell, seed=relief_seed)
-        record["micro_relief"] = {"sediment": sediment, "seed": relief_seed, "cell_m": cell}
-    return field, reflectivity, record
+        field = micro_relief(field, str(rough), resolution=cell, seed=relief_seed)
+        record["micro_relief"] = {"sediment": rough, "seed": relief_seed, "cell_m": cell}
+    return field, reflectivity, law, record
 
 
 def _place(
@@ -234,8 +244,8 @@ def draw_sample(config: DatasetConfig, seed: int, index: int) -> SampleScene:
     x0 = -ground_max - m if "port" in config.sides else -m
     x1 = ground_max + m if "starboard" in config.sides else m
     extent = (x0, x1, -0.5 * length - m, 0.5 * length + m)
-    field, seabed_r, seabed_record = _seabed(config, rng, heading, extent, sonar.range_bin)
-    parts = [field.mesh(reflectivity=seabed_r, name="seabed")]
+    field, seabed_r, law, seabed_record = _seabed(config, rng, heading, extent, sonar.range_bin)
+    parts = [replace(field.mesh(reflectivity=seabed_r, name="seabed"), law=law)]
     instances: list[dict] = []
     centres: list[np.ndarray] = []
     for spec in config.objects:
@@ -245,9 +255,7 @@ def draw_sample(config: DatasetConfig, seed: int, index: int) -> SampleScene:
             instances.append(inst)
     effects_seed = int(rng.integers(2**31))
     rot = _heading_rotation(math.radians(heading))
-    parts = [
-        MeshPart(p.vertices @ rot.T, p.faces, p.reflectivity, p.name, p.is_seabed) for p in parts
-    ]
+    parts = [replace(p, vertices=p.vertices @ rot.T) for p in parts]
     scene = build_scene(parts)
     own = scene.object_id == 0  # the seabed alone: the same cleaned faces, no second check
     seabed_scene = Scene(
@@ -257,6 +265,7 @@ def draw_sample(config: DatasetConfig, seed: int, index: int) -> SampleScene:
         scene.object_id[own],
         scene.names[:1],
         scene.ground_z,
+        law=None if scene.law is None else scene.law[own],
         two_sided=scene.two_sided_faces()[own],
     )
     start = rot @ np.array([0.0, -0.5 * length, altitude])

@@ -263,6 +263,11 @@ def test_a_failing_sample_is_recorded_and_the_others_complete(tmp_path):
         (("[placement]", "[render]\noversample = 0.0\n[placement]"), "oversample"),
         (('kind = "flat"', 'kind = "flat"\nmicro_relief = "cheese"'), "unknown material"),
         (('kind = "flat"', 'kind = "flat"\nmicro_relief = 0.1'), "sediment name"),
+        (('kind = "flat"', 'kind = "flat"\nmaterial = "cheese"'), "unknown material"),
+        (('kind = "flat"', 'kind = "flat"\nmaterial = "sand"\nreflectivity = 0.3'), "not both"),
+        (('kind = "flat"', 'kind = "flat"\nscattering = "lambert"'), "needs a 'material'"),
+        (('kind = "flat"', 'kind = "flat"\nmaterial = "sand"\nscattering = "x"'), "one of"),
+        (('kind = "flat"', 'kind = "flat"\nmicro_relief = true'), "takes the seabed's"),
         (("seed = 5", 'seed = 5\nsides = ["starboard", "starboard"]'), "each once"),
     ],
 )
@@ -689,3 +694,64 @@ def test_a_seabed_takes_its_drawn_sediments_micro_relief(tmp_path):
     # without the key the flat seabed stays flat
     plain = draw_sample(_config(tmp_path, SWATH, "plain.toml"), 3, 0).scene
     assert np.ptp(plain.vertices[np.unique(plain.faces[plain.object_id == 0]), 2]) == 0.0
+
+
+def test_a_seabed_material_sets_its_law_and_reflectivity_in_both_scenes(tmp_path):
+    """``material`` draws a sediment per sample: its APL-UW law (or Lambert, when asked) and
+    its reflectivity on the seabed's faces, in the full scene and the seabed alone (whose
+    render the shadow labels compare with); ``micro_relief = true`` takes its roughness."""
+    from sonar_raster.scenes.sediments import material_index, material_reflectivity
+
+    text = SWATH.replace(
+        "reflectivity = 0.3",
+        'material = { choice = ["rock", "mud"] }\nmicro_relief = true\nscattering = "LAW"',
+    )
+    seen = set()
+    for law in ("apl", "lambert"):
+        config = _config(tmp_path, text.replace("LAW", law), f"{law}.toml")
+        for index in range(4):
+            drawn = draw_sample(config, 3, index)
+            record = drawn.params["seabed"]
+            material = record["material"]
+            seen.add(material)
+            assert record["scattering"] == law and record["micro_relief"]["sediment"] == material
+            code = material_index(material) if law == "apl" else 0
+            for scene in (drawn.scene, drawn.seabed):
+                seabed = scene.object_id == 0
+                assert scene.law is not None or code == 0
+                laws = np.zeros(scene.n_triangles) if scene.law is None else scene.law
+                assert np.all(laws[seabed] == code) and np.all(laws[~seabed] == 0)
+                assert np.all(scene.reflectivity[seabed] == material_reflectivity(material))
+    assert seen == {"rock", "mud"}
+
+
+def test_a_seabed_materials_law_reaches_the_image(tmp_path, gl):
+    """The APL-UW sand law over the Lambert one with the same reflectivity, in a sample's raw
+    image: the law's factor at each bin's incidence angle and the sample's frequency."""
+    from sonar_raster.scenes.sediments import law_factor, material_index
+
+    text = (
+        SWATH.replace("count = 1\n", "")
+        .replace("reflectivity = 0.3", 'material = "sand"')
+        .replace("[[objects]]", "[[objects]]\ncount = 0")
+        + '[effects]\nsensor = "ideal"\n'
+    )
+    profiles = {}
+    for law in ("apl", "lambert"):
+        config = _config(
+            tmp_path,
+            text.replace('material = "sand"', f'material = "sand"\nscattering = "{law}"'),
+            f"{law}.toml",
+        )
+        d = draw_sample(config, 0, 0)
+        image = gl.render(d.scene, d.sonar, d.trajectory).sides["starboard"]
+        profiles[law] = image.astype(np.float64).mean(axis=0)
+    sonar = d.sonar
+    r = (np.arange(sonar.n_bins) + 0.5) * sonar.range_bin
+    first = int(math.ceil(4.0 / sonar.range_bin)) + 40  # 2 m beyond nadir: a smooth law
+    cos_t = 4.0 / r[first:]
+    law = np.full(len(cos_t), material_index("sand"))
+    expected = law_factor(law, cos_t, sonar.frequency_hz, sonar.sound_speed)
+    got = profiles["apl"][first:] / profiles["lambert"][first:]
+    np.testing.assert_allclose(got, expected, rtol=0.01)
+    assert np.ptp(10 * np.log10(expected)) > 1.0  # the law is not Lambert's shape
