@@ -17,6 +17,7 @@ import numpy as np
 
 from .._checks import did_you_mean, non_negative, positive
 from ..errors import SonarRasterError
+from ..scene import closed_volume
 
 Mesh = tuple[np.ndarray, np.ndarray]
 
@@ -28,10 +29,9 @@ def _as_arrays(mesh: object) -> Mesh:
 
 
 def _outward(vertices: np.ndarray, faces: np.ndarray) -> Mesh:
-    """Flip the winding when the signed volume is negative (normals pointing in)."""
-    tri = vertices[faces]
-    volume = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() / 6.0
-    return (vertices, faces if volume >= 0 else faces[:, ::-1].copy())
+    """Flip the winding of a closed surface whose faces point in (negative signed volume)."""
+    volume = closed_volume(vertices, faces)
+    return (vertices, faces if volume is None or volume >= 0 else faces[:, ::-1].copy())
 
 
 def _length(name: str, value: float) -> float:
