@@ -184,12 +184,13 @@ def _most_relief_nodes(config: Any) -> float:
     ``MICRO_RESOLUTION_BINS`` range bins: most at the shortest range and the widest ping spacing
     the config draws, and never past ``MICRO_MAX_NODES``.
     """
+    from ..dataset.config import range_bounds
     from ..dataset.scene import SEABED_MARGIN
     from ..scenes.seabed import MICRO_MAX_NODES, MICRO_RESOLUTION_BINS
 
     if not any(spec.micro_relief is not None for spec in config.seabeds):
         return 0.0
-    shortest = config.sonar["max_range"].bounds[0]
+    shortest = range_bounds(config.sonar, config.sensor)[0]
     widest = config.track["spacing"].bounds[1]
     if not (math.isfinite(shortest) and shortest > 0 and math.isfinite(widest)):
         return float(MICRO_MAX_NODES)

@@ -281,6 +281,9 @@ class DatasetConfig:
     digest: str = ""
     raw: dict = field(default_factory=dict, repr=False)
     background: BackgroundSpec | None = None
+    #: ``[sonar] preset``: a sensor preset name or a choice of them, drawn per sample; its
+    #: sonar fills the ``[sonar]`` keys the config leaves out, its effects are the base.
+    sensor: Dist | None = None
 
     @property
     def categories(self) -> tuple[str, ...]:
@@ -381,6 +384,39 @@ def _check_ranges(dists: dict[str, Dist], where: str) -> None:
             raise SonarRasterError(
                 f"{where} '{key}': must be {rule(key)}; {dist.kind} [{lo:g}, {hi:g}] never is"
             )
+
+
+def _sensor_dist(value: Any, where: str) -> Dist | None:
+    """A sensor preset name or ``{ choice = [names] }`` (see ``sonar-raster sensors``)."""
+    if value is None:
+        return None
+    from ..effects.presets import preset
+
+    dist = parse_dist(value, where)
+    if dist.kind not in ("fixed", "choice") or not all(isinstance(v, str) for v in dist.args):
+        raise SonarRasterError(
+            f'{where}: give a sensor preset name such as "klein-3900-900" or '
+            "{ choice = [names] } (sonar-raster sensors lists them)"
+        )
+    for name in dist.args:
+        try:
+            preset(name)
+        except SonarRasterError as exc:
+            raise SonarRasterError(f"{where}: {exc}") from None
+    return dist
+
+
+def range_bounds(sonar: dict[str, Dist], sensor: Dist | None) -> tuple[float, float]:
+    """Shortest and longest maximum range a config draws, metres.
+
+    ``[sonar] max_range`` when given, else the presets' default ranges.
+    """
+    if "max_range" in sonar or sensor is None:
+        return sonar["max_range"].bounds
+    from ..effects.presets import preset
+
+    ranges = [preset(str(name)).max_ranges_m[0] for name in sensor.args]
+    return (min(ranges), max(ranges))
 
 
 def _dists(table: dict, defaults: dict, where: str) -> dict[str, Dist]:
@@ -629,11 +665,9 @@ def load_dataset_config(path: str | Path) -> DatasetConfig:
         )
     _no_leftovers(ds, f"{where} [dataset]")
     sonar = _table(data, "sonar", where)
-    sonar_d = _dists(
-        {k: sonar.pop(k, v) for k, v in _SONAR_DEFAULTS.items()},
-        _SONAR_DEFAULTS,
-        f"{where} [sonar]",
-    )
+    sensor = _sensor_dist(sonar.pop("preset", None), f"{where} [sonar] 'preset'")
+    given = {k: v for k, v in _SONAR_DEFAULTS.items() if sensor is None or k in sonar}
+    sonar_d = _dists({k: sonar.pop(k, v) for k, v in given.items()}, given, f"{where} [sonar]")
     _no_leftovers(sonar, f"{where} [sonar]")
     track_t = _table(data, "track", where)
     track = _dists(
@@ -642,7 +676,7 @@ def load_dataset_config(path: str | Path) -> DatasetConfig:
         f"{where} [track]",
     )
     _no_leftovers(track_t, f"{where} [track]")
-    reach, lowest = sonar_d["max_range"].bounds[1], track["altitude"].bounds[0]
+    reach, lowest = range_bounds(sonar_d, sensor)[1], track["altitude"].bounds[0]
     if reach <= REACH_PAST_ALTITUDE * lowest:
         raise SonarRasterError(
             f"{where}: [sonar] max_range (at most {reach:g} m) never reaches past [track] "
@@ -698,6 +732,7 @@ def load_dataset_config(path: str | Path) -> DatasetConfig:
         bins=bins,
         sides=tuple(s for s in SIDES if s in sides),
         sonar=sonar_d,
+        sensor=sensor,
         track=track,
         seabeds=seabeds,
         objects=objects,

@@ -330,7 +330,9 @@ def _check_effects(config: DatasetConfig) -> None:
         return
     from .sample import effects_of
 
-    effects_of(config)  # a bad key fails here, before any output
+    names = [None] if config.sensor is None else config.sensor.args
+    for name in names:  # a bad key fails here, before any output
+        effects_of(config, name)
 
 
 def _results(

@@ -96,7 +96,7 @@ def _labels(
 
 def _effects(image: SonarImage, config: DatasetConfig, drawn: SampleScene) -> SonarImage:
     """Apply the config's effects (:func:`effects_of`); none enabled: the raw image."""
-    effects = effects_of(config)
+    effects = effects_of(config, drawn.params["sonar"].get("preset"))
     if not effects.stages:
         return image
     from ..effects.chain import apply_effects
@@ -104,27 +104,30 @@ def _effects(image: SonarImage, config: DatasetConfig, drawn: SampleScene) -> So
     return apply_effects(image, effects, seed=drawn.effects_seed, trajectory=drawn.trajectory)
 
 
-def effects_of(config: DatasetConfig) -> Any:
+def effects_of(config: DatasetConfig, sensor: str | None = None) -> Any:
     """:class:`sonar_raster.effects.chain.Effects` of a config.
 
-    Without an ``[effects]`` table: every effect of the default sensor
-    (:data:`~sonar_raster.effects.presets.DEFAULT_SENSOR`). A table is the complete effect set
-    (keywords of :class:`~sonar_raster.effects.Effects`) unless it names a ``sensor``, whose
-    effects its other keys then replace; ``sensor = "ideal"`` starts from none (raw images).
+    Without an ``[effects]`` table: every effect of the sample's sensor preset (``[sonar]
+    preset``), else of the default sensor (:data:`~sonar_raster.effects.presets.DEFAULT_SENSOR`).
+    A table is the complete effect set (keywords of :class:`~sonar_raster.effects.Effects`)
+    unless it names a ``sensor``, or the config a preset, whose effects its other keys then
+    replace; ``sensor = "ideal"`` starts from none (raw images).
 
     Parameters
     ----------
     config : DatasetConfig
         The dataset config.
+    sensor : str, optional
+        The sample's drawn ``[sonar] preset``.
     """
     from ..effects.chain import Effects
+    from ..effects.presets import DEFAULT_SENSOR, preset
 
     if config.effects is None:
-        from ..effects.presets import DEFAULT_SENSOR, preset
-
-        return preset(DEFAULT_SENSOR).effects()
+        return preset(sensor or DEFAULT_SENSOR).effects()
     where = f"{Path(config.source).name} [effects]"
-    return Effects.from_table(config.effects, base=config.base, where=where)
+    table = config.effects if sensor is None else {"sensor": sensor, **config.effects}
+    return Effects.from_table(table, base=config.base, where=where)
 
 
 def _tmpdir() -> Path:

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from ..effects.presets import preset
 from ..errors import SonarRasterError
 from ..scene import MeshPart, Scene, build_scene
 from ..scenes.objects import build_primitive
@@ -218,9 +219,23 @@ def draw_sample(config: DatasetConfig, seed: int, index: int) -> SampleScene:
         user mesh cannot be read.
     """
     rng = np.random.default_rng([int(seed), int(index)])
+    sensor = None if config.sensor is None else str(config.sensor.draw(rng))
     s = {key: dist.draw(rng) for key, dist in config.sonar.items()}
     t = {key: dist.draw(rng) for key, dist in config.track.items()}
     altitude, spacing, heading = float(t["altitude"]), float(t["spacing"]), float(t["heading_deg"])
+    beam = None
+    if sensor is not None:  # the preset's sonar where the config leaves a key out
+        own = preset(sensor).sonar(s.get("max_range"))
+        if "beamwidth_deg" not in s:  # the preset's beam, its sidelobe floor included
+            beam = own.beam
+        s = {
+            "frequency_hz": own.frequency_hz,
+            "max_range": own.max_range,
+            "tilt_deg": math.degrees(own.tilt),
+            "beamwidth_deg": preset(sensor).vertical_beamwidth_deg / math.sqrt(2.0),
+            "sound_speed": own.sound_speed,
+            **s,
+        }
     max_range = float(s["max_range"])
     for key, value in (("altitude", altitude), ("spacing", spacing)):
         if not allowed(key, value):
@@ -233,7 +248,7 @@ def draw_sample(config: DatasetConfig, seed: int, index: int) -> SampleScene:
         frequency_hz=float(s["frequency_hz"]),
         max_range=max_range,
         range_bin=max_range / config.bins,
-        beam=BeamPattern.gaussian(float(s["beamwidth_deg"])),
+        beam=BeamPattern.gaussian(float(s["beamwidth_deg"])) if beam is None else beam,
         tilt=math.radians(float(s["tilt_deg"])),
         sides=config.sides,
         sound_speed=float(s["sound_speed"]),
@@ -273,7 +288,11 @@ def draw_sample(config: DatasetConfig, seed: int, index: int) -> SampleScene:
     params = {
         "index": int(index),
         "seed": int(seed),
-        "sonar": {**sonar.to_dict(), "beamwidth_deg": float(s["beamwidth_deg"])},
+        "sonar": {
+            **sonar.to_dict(),
+            "beamwidth_deg": float(s["beamwidth_deg"]),
+            **({} if sensor is None else {"preset": sensor}),
+        },
         "track": {
             "altitude_m": altitude,
             "heading_deg": heading,

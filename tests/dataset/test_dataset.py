@@ -755,3 +755,48 @@ def test_a_seabed_materials_law_reaches_the_image(tmp_path, gl):
     got = profiles["apl"][first:] / profiles["lambert"][first:]
     np.testing.assert_allclose(got, expected, rtol=0.01)
     assert np.ptp(10 * np.log10(expected)) > 1.0  # the law is not Lambert's shape
+
+
+def test_a_sensor_preset_draws_its_sonar_and_effects_per_sample(tmp_path):
+    """``[sonar] preset`` (a name or a choice): the preset's frequency, range, tilt and beam
+    where the config leaves them out, the config's keys where it gives them, and the preset's
+    effects as the base of the sample's effects."""
+    from sonar_raster.dataset.sample import effects_of
+    from sonar_raster.effects.presets import preset
+
+    names = ["klein-3900-900", "edgetech-4200-100"]
+    text = SWATH.replace(
+        "[sonar]\nmax_range = 12.0\ntilt_deg = 15.0\nbeamwidth_deg = 60.0\n",
+        f"[sonar]\npreset = {{ choice = {json.dumps(names)} }}\n",
+    )
+    config = _config(tmp_path, text)
+    seen = set()
+    angles = np.radians(np.linspace(0.0, 80.0, 17))
+    for index in range(6):
+        drawn = draw_sample(config, 1, index)
+        name = drawn.params["sonar"]["preset"]
+        seen.add(name)
+        own = preset(name).sonar()
+        sonar = drawn.sonar
+        assert sonar.frequency_hz == own.frequency_hz and sonar.max_range == own.max_range
+        assert sonar.tilt == pytest.approx(own.tilt) and sonar.range_bin == own.max_range / 256
+        np.testing.assert_allclose(sonar.beam(angles), own.beam(angles))
+        assert effects_of(config, name) == preset(name).effects()
+    assert seen == set(names)
+    # a key the config gives wins; an [effects] table's keys replace the preset's
+    given = text.replace("[sonar]\n", "[sonar]\nfrequency_hz = 500e3\ntilt_deg = 5.0\n")
+    given += "[effects]\nnoise_db = -150.0\n"
+    config = _config(tmp_path, given, "given.toml")
+    drawn = draw_sample(config, 1, 0)
+    name = drawn.params["sonar"]["preset"]
+    assert drawn.sonar.frequency_hz == 500e3 and drawn.sonar.tilt == pytest.approx(np.radians(5))
+    assert drawn.sonar.max_range == preset(name).sonar().max_range
+    fx = effects_of(config, name)
+    assert fx.noise_db == -150.0 and fx.along_beam_deg == preset(name).effects().along_beam_deg
+
+
+def test_an_unknown_sensor_preset_is_one_line(tmp_path):
+    text = SWATH.replace("[sonar]\n", '[sonar]\npreset = "klein-9000"\n')
+    with pytest.raises(SonarRasterError, match=r"\[sonar\] 'preset'.*klein-9000") as info:
+        _config(tmp_path, text)
+    assert "\n" not in str(info.value)
