@@ -192,7 +192,11 @@ def _load_trimesh(path: Path) -> list[MeshPart]:
         faces = np.array(mesh.faces, dtype=np.int64)
         if np.linalg.det(matrix[:3, :3]) < 0:  # a mirroring transform turns faces inside out
             faces = faces[:, ::-1].copy()
-        reflectivity = _DEFAULT_REFLECTIVITY if bare else _reflectivity(scene, node, mesh, path)
+        if bare:  # its vertex colours, if it has them ("v x y z r g b")
+            colours = _colour_reflectivity(mesh, path)
+            reflectivity = _DEFAULT_REFLECTIVITY if colours is None else colours
+        else:
+            reflectivity = _reflectivity(scene, node, mesh, path)
         parts.append(MeshPart(vertices, faces, reflectivity, str(node)))
     return parts
 
@@ -352,7 +356,8 @@ def _check_json(path: Path) -> Any:
 def _reflectivity(scene: Any, node: str, mesh: Any, path: Path) -> float | np.ndarray:
     """Node extras, mesh extras, then texture x colour factor, colour factor, else 0.5.
 
-    The colour factor is glTF's ``baseColorFactor`` or an OBJ material's ``Kd`` (RGB mean).
+    A face or vertex colour (PLY, OBJ, glTF ``COLOR_0``) stands in for a texture. The colour
+    factor is glTF's ``baseColorFactor`` or an OBJ material's ``Kd`` (RGB mean).
     """
     transforms = scene.graph.transforms
     parent = transforms.parents.get(node)
@@ -370,9 +375,37 @@ def _reflectivity(scene: Any, node: str, mesh: Any, path: Path) -> float | np.nd
         scale = 255.0 if np.issubdtype(colour.dtype, np.integer) else 1.0
         factor = float(colour[:3].mean()) / scale
     texture = _texture_reflectivity(mesh)
+    if texture is None:
+        texture = _colour_reflectivity(mesh, path)
     if texture is not None:
         return factor * texture
     return factor if colour is not None else _DEFAULT_REFLECTIVITY
+
+
+def _colour_reflectivity(mesh: Any, path: Path) -> np.ndarray | None:
+    """Per-face reflectivity from face or vertex colours (PLY, OBJ, glTF ``COLOR_0``).
+
+    The grey of the face's colour (RGB mean / 255), or the mean of its corners'; None when the
+    file gives no colours, or colours per polygon that trimesh left unmatched to the triangles
+    it cut the polygons into (a warning).
+    """
+    visual = mesh.visual
+    kind = getattr(visual, "kind", None)
+    if kind == "face":
+        rgb = np.asarray(visual.face_colors, dtype=np.float64)[:, :3]
+        if len(rgb) != len(mesh.faces):
+            log.warning(
+                "%s: %d face colours for %d triangles (polygons cut into triangles): colours "
+                "not used; export triangles to keep them",
+                path.name, len(rgb), len(mesh.faces),
+            )  # fmt: skip
+            return None
+    elif kind == "vertex":
+        corners = np.asarray(visual.vertex_colors, dtype=np.float64)[np.asarray(mesh.faces)]
+        rgb = corners[:, :, :3].mean(axis=1)
+    else:
+        return None
+    return rgb.mean(axis=1) / 255.0
 
 
 #: Barycentric points at which a face samples its texture (centroid and towards each corner).

@@ -238,6 +238,54 @@ def test_colour_texture_gives_per_face_reflectivity(tmp_path, suffix):
     assert r[0] == pytest.approx(0.0, abs=0.02) and r[1] > 0.3 * factor
 
 
+@pytest.mark.parametrize("suffix", [".ply", ".glb", ".obj"])
+def test_vertex_colours_give_per_face_reflectivity(tmp_path, suffix):
+    """A scanned model's vertex colours (PLY, glTF COLOR_0, OBJ ``v x y z r g b``): each face
+    the grey of its corners' mean colour."""
+    mesh = box()
+    grey = np.linspace(0, 255, len(mesh.vertices)).round()
+    rgb = np.stack([grey, 255 - grey, grey], axis=1)  # RGB mean (255 + grey) / 3
+    colours = np.c_[rgb, np.full(8, 255)].astype(np.uint8)
+    mesh.visual = trimesh.visual.ColorVisuals(mesh, vertex_colors=colours)
+    path = tmp_path / f"scanned{suffix}"
+    if suffix == ".obj":
+        path.write_text(trimesh.exchange.obj.export_obj(mesh, include_color=True))
+    else:
+        mesh.export(path)
+    (part,) = load_model(path)
+    grey_of = rgb.mean(axis=1) / 255
+    by_vertex = {tuple(v): r for v, r in zip(mesh.vertices.round(6), grey_of, strict=True)}
+    expected = [np.mean([by_vertex[tuple(v)] for v in tri]) for tri in part.vertices[part.faces]]
+    np.testing.assert_allclose(np.broadcast_to(part.reflectivity, (12,)), expected, atol=1e-6)
+
+
+def test_ply_face_colours_give_per_face_reflectivity(tmp_path):
+    mesh = box()
+    grey = np.arange(12) * 20
+    mesh.visual = trimesh.visual.ColorVisuals(
+        mesh, face_colors=np.c_[grey, grey, grey, np.full(12, 255)].astype(np.uint8)
+    )
+    path = tmp_path / "faces.ply"
+    mesh.export(path)
+    (part,) = load_model(path)
+    np.testing.assert_allclose(part.reflectivity, grey / 255, atol=1e-6)
+
+
+def test_ply_colours_per_polygon_are_left_out_with_a_warning(tmp_path, caplog):
+    """trimesh cuts a quad into two triangles but keeps one colour per quad: not matched."""
+    path = tmp_path / "quad.ply"
+    path.write_text(
+        "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+        "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+        "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n"
+        "0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3 10 10 10\n"
+    )
+    with caplog.at_level("WARNING"):
+        (part,) = load_model(path)
+    assert len(part.faces) == 2 and np.all(part.reflectivity == 0.5)
+    assert "1 face colours for 2 triangles" in caplog.text
+
+
 def test_obj_material_colour_sets_reflectivity(tmp_path):
     """An OBJ material's Kd sets the reflectivity (RGB mean) as glTF's base colour does; a
     material without Kd, and a missing .mtl, leave the default."""
