@@ -1070,6 +1070,21 @@ class XtfNavigation:
         return path / float(idx[-1] - idx[0])
 
 
+def _read_to_next_fix(reader: XtfReader, rows: list[XtfPing]) -> None:
+    """Read on past the last ping kept to the first navigation fix after it.
+
+    Only where the file has navigation packets: the pings between the last fix and the range's
+    end are then interpolated towards it, as when the whole file is read.
+    """
+    times = [p.time for p in rows if math.isfinite(p.time)]
+    if not reader.fixes or not times:
+        return
+    last = max(times)
+    for _ in reader.packets():
+        if reader.fixes[-1][0] > last:
+            return
+
+
 def _ping_slice(pings: Any) -> slice:
     """``pings`` of :func:`read_xtf` as a slice.
 
@@ -1139,6 +1154,7 @@ def read_xtf(
     with XtfReader(path, frequency) as reader:
         for ping in reader:
             if forward and keep.stop is not None and ping.index >= keep.stop:
+                _read_to_next_fix(reader, rows)
                 break
             rows.append(ping)
         chosen = range(*keep.indices(reader.count))

@@ -188,6 +188,10 @@ def test_pings_without_a_position_take_the_navigation_packets(tmp_path):
     expected = np.interp(nav.time[1:], nav.time[fixed], x[fixed])
     np.testing.assert_allclose(nav.x[1:], expected, rtol=0, atol=1e-9)
     assert np.max(np.abs(nav.x[1:] - x[1:])) < 2e-6  # degrees: within 0.15 m of the pings' own
+    # a ping range ending between two fixes: its last pings as when the whole file is read
+    _, part = read_xtf(path, pings=(0, 8))
+    np.testing.assert_array_equal(part.valid, nav.valid[:8])
+    np.testing.assert_array_equal(part.x, nav.x[:8])
 
 
 def test_a_ping_with_only_the_ship_position_takes_it(tmp_path):
