@@ -669,7 +669,7 @@ def _fan(index: np.ndarray) -> np.ndarray:
     return faces[_distinct(faces)]
 
 
-def _indexed_face_set(node: _Node) -> tuple[np.ndarray, np.ndarray]:
+def _indexed_face_set(node: _Node) -> tuple[np.ndarray, ...]:
     coord = node.fields.get("coord")
     points = _numbers(coord, "point", width=3) if isinstance(coord, _Node) else np.zeros(0)
     points = points.reshape(-1, 3)
@@ -682,8 +682,64 @@ def _indexed_face_set(node: _Node) -> tuple[np.ndarray, np.ndarray]:
             f"{len(points)} points; fix the model file",
         )
     convex = _flag(node, "convex", True)
-    faces = _finite_faces(points, _fan(index) if convex else _ear_cut(points, index))
-    return points, faces if _flag(node, "ccw", True) else faces[:, [0, 2, 1]]
+    # triangulate the places in coordIndex, so that a triangle's corners name their polygon
+    # and their entries of colorIndex too
+    place = np.where(index == -1, -1, np.arange(index.size))
+    vertex = np.maximum(index, 0).astype(np.int64)
+    corners = _fan(place) if convex else _ear_cut(points[vertex], place)
+    corners = corners[_distinct(vertex[corners])]
+    bad = ~np.all(np.isfinite(points), axis=1)
+    if bad.any():  # 'nan' in the file: its faces dropped, the point made 0 (unused)
+        points[bad] = 0.0
+        corners = corners[~bad[vertex[corners]].any(axis=1)]
+    faces = vertex[corners]
+    grey = _face_colours(node, index, corners)
+    faces = faces if _flag(node, "ccw", True) else faces[:, [0, 2, 1]]
+    return (points, faces) if grey is None else (points, faces, grey)
+
+
+def _face_colours(node: _Node, index: np.ndarray, corners: np.ndarray) -> np.ndarray | None:
+    """Grey (RGB mean) per triangle from an IndexedFaceSet's ``color`` node, or None.
+
+    VRML97: the colours replace the Material's diffuse colour; per vertex (``colorPerVertex``
+    TRUE, the default) through ``colorIndex`` like ``coordIndex`` (or ``coordIndex`` itself when
+    it is empty), a triangle taking its corners' mean; per face through ``colorIndex`` (or in
+    order). ``corners`` are the triangles' places in ``coordIndex``. Indices that do not fit
+    the colours are a warning, and the Material's colour is used.
+    """
+    colour = node.fields.get("color")
+    if not isinstance(colour, _Node):
+        return None
+    grey = _numbers(colour, "color", width=3).reshape(-1, 3).mean(axis=1)
+    if not grey.size:
+        return None
+    lookup = _numbers(node, "colorIndex")
+    problem, wanted = None, np.zeros(0)
+    if _flag(node, "colorPerVertex", True):
+        if lookup.size and lookup.size < index.size:
+            problem = f"colorIndex has {lookup.size} entries for {index.size} in coordIndex"
+        else:
+            wanted = (lookup if lookup.size else index)[corners]
+    else:
+        separators = index == -1
+        polygon = (np.cumsum(separators) - separators)[corners[:, 0]]
+        if lookup.size and polygon.size and polygon.max() >= lookup.size:
+            problem = f"colorIndex has {lookup.size} entries for {int(polygon.max()) + 1} faces"
+        else:
+            wanted = lookup[polygon] if lookup.size else polygon
+    outside = wanted[(wanted < 0) | (wanted >= grey.size)]
+    if problem is None and outside.size:
+        problem = f"colour index {outside[0]:g} is outside its {grey.size} colours"
+    if problem is not None:
+        warnings.warn(
+            f"{node.src.name}:{node.src.line(node.pos)}: IndexedFaceSet {problem}; the "
+            "Material's colour is used instead",
+            InputWarning,
+            stacklevel=2,
+        )
+        return None
+    picked = grey[wanted.astype(np.int64)]
+    return picked.mean(axis=1) if picked.ndim == 2 else picked
 
 
 def _ear_cut(points: np.ndarray, index: np.ndarray) -> np.ndarray:
@@ -972,7 +1028,8 @@ class _Walker:
     def __init__(self, stem: str, stack: tuple[Path, ...]) -> None:
         self.stem, self.stack = stem, list(stack)
         self.parts: list[MeshPart] = []
-        self._meshes: dict[int, tuple[np.ndarray, np.ndarray] | None] = {}
+        # (points, faces) or (points, faces, grey per face) of each geometry node, built once
+        self._meshes: dict[int, tuple[np.ndarray, ...] | None] = {}
         self._inlines: dict[Path, list[_Node]] = {}
         self._unsupported: set[str] = set()  # geometry types (and "size") already warned about
 
@@ -1039,8 +1096,9 @@ class _Walker:
             return
         with _lenient():
             vertices = mesh[0] @ matrix[:3, :3].T + matrix[:3, 3]
-            reflectivity = _reflectivity(node)
-        if not (np.all(np.isfinite(vertices)) and math.isfinite(reflectivity)):
+            # a Color node's colours replace the Material's diffuse colour (VRML97)
+            reflectivity = _reflectivity(node) if len(mesh) < 3 else mesh[2]
+        if not (np.all(np.isfinite(vertices)) and np.all(np.isfinite(reflectivity))):
             raise node.src.error(node.pos, f"{geometry.type} {_OVERFLOW}")
         mirrored = np.linalg.slogdet(matrix[:3, :3])[0] < 0  # the sign, without overflow
         faces = mesh[1][:, ::-1] if mirrored else mesh[1]

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from conftest import SHARED_DATA
 
-from sonar_raster.errors import SonarRasterError
+from sonar_raster.errors import InputWarning, SonarRasterError
 from sonar_raster.meshio.vrml import SEGMENTS, load_vrml, parse_vrml
 
 DATA = SHARED_DATA / "vrml"
@@ -593,3 +593,77 @@ def test_multi_member_gzip_is_read_whole(tmp_path):
     first = b"#VRML V2.0 utf8\nShape { geometry Box { size 1 2 3 } }\n"
     path.write_bytes(gzip.compress(first) + gzip.compress(b"Shape { geometry Box { } }\n"))
     assert len(vrml.load_vrml(path)) == 2
+
+
+# Two unit squares side by side (x 0..1 and 1..2) and a triangle, on z = 0.
+SQUARES = (
+    "coord Coordinate { point [0 0 0, 1 0 0, 1 1 0, 0 1 0, 2 0 0, 2 1 0, 3 0 0] }"
+    " coordIndex [0 1 2 3 -1, 1 4 5 2 -1, 4 6 5]"
+)
+MATERIAL = "appearance Appearance { material Material { diffuseColor 0.8 0.8 0.8 } }"
+
+
+def _face_greys(colours: str, rest: str = "") -> tuple[np.ndarray, np.ndarray]:
+    """Each triangle's reflectivity and the x of its centroid, for SQUARES with a Color."""
+    ifs = f"IndexedFaceSet {{ {SQUARES} color Color {{ color [{colours}] }} {rest} }}"
+    (part,) = parse(shape(ifs, MATERIAL))
+    r = np.broadcast_to(part.reflectivity, (len(part.faces),))
+    return r, part.vertices[part.faces].mean(axis=1)[:, 0]
+
+
+@pytest.mark.parametrize(
+    ("rest", "expected"),
+    [
+        ("colorPerVertex FALSE", (0.0, 1.0, 0.5)),  # one colour per face, in order
+        ("colorPerVertex FALSE colorIndex [2 0 1]", (0.5, 0.0, 1.0)),  # through colorIndex
+    ],
+)
+def test_colours_per_face_replace_the_material(rest, expected):
+    """VRML97: a Color node's colours replace the Material's diffuse colour (0.8 here); per
+    face, each polygon's triangles take its colour (RGB mean)."""
+    r, x = _face_greys("0 0 0, 1 1 1, 0.2 0.5 0.8", rest)
+    face = np.digitize(x, [1.0, 2.0])  # 0, 1: the squares; 2: the triangle
+    assert len(r) == 5
+    np.testing.assert_allclose(r, np.array(expected)[face], atol=1e-12)
+
+
+@pytest.mark.parametrize("indexed", [False, True])
+def test_colours_per_vertex_give_each_triangle_its_corners_mean(indexed):
+    """Per vertex (the default): through coordIndex, or a colorIndex of the same layout."""
+    greys = np.arange(7) / 6.0
+    colours = ", ".join(f"{g:g} {g:g} {g:g}" for g in greys)
+    rest = "colorIndex [0 1 2 3 -1, 1 4 5 2 -1, 4 6 5]" if indexed else ""
+    if indexed:  # the same colours, listed backwards and indexed to match
+        colours = ", ".join(f"{g:g} {g:g} {g:g}" for g in greys[::-1])
+        rest = "colorIndex [6 5 4 3 -1, 5 2 1 4 -1, 2 0 1]"
+    ifs = f"IndexedFaceSet {{ {SQUARES} color Color {{ color [{colours}] }} {rest} }}"
+    (part,) = parse(shape(ifs, MATERIAL))
+    expected = greys[part.faces].mean(axis=1)
+    np.testing.assert_allclose(part.reflectivity, expected, atol=1e-6)  # 6 digits in the file
+
+
+def test_per_face_colours_follow_concave_polygons_cut_into_ears():
+    outline = "0 0 0, 2 0 0, 2 2 0, 1 0.5 0, 0 2 0, 3 0 0, 4 0 0, 3 1 0"
+    body = f"coord Coordinate {{ point [{outline}] }} coordIndex [0 1 2 3 4 -1, 5 6 7]"
+    ifs = (
+        f"IndexedFaceSet {{ convex FALSE {body} colorPerVertex FALSE "
+        "color Color { color [0.1 0.1 0.1, 0.7 0.7 0.7] } }"
+    )
+    (part,) = parse(shape(ifs))
+    x = part.vertices[part.faces].mean(axis=1)[:, 0]
+    np.testing.assert_allclose(part.reflectivity, np.where(x < 2.5, 0.1, 0.7), atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("rest", "message"),
+    [
+        ("colorPerVertex FALSE colorIndex [0 1]", r"colorIndex has 2 entries for 3 faces"),
+        ("colorPerVertex FALSE colorIndex [0 1 7]", r"colour index 7 is outside its 3 colours"),
+        ("colorIndex [0 1 2]", r"colorIndex has 3 entries for 13 in coordIndex"),
+        ("", r"colour index 3 is outside its 3 colours"),  # per vertex through coordIndex
+    ],
+)
+def test_colour_indices_that_do_not_fit_are_a_warning_and_the_material_is_used(rest, message):
+    with pytest.warns(InputWarning, match=message):
+        r, _ = _face_greys("0 0 0, 1 1 1, 0.5 0.5 0.5", rest)
+    np.testing.assert_allclose(r, 0.8)
