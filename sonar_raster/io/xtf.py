@@ -87,6 +87,9 @@ XTF_MAGIC = 0xFACE
 _SONAR_PACKET = 0
 #: ``XTFHEADER_NAVIGATION``: a time-stamped fix from the navigation source, between pings.
 _NAVIGATION_PACKET = 42
+#: ``XTFPOSRAWNAVIGATION``: a fix as the navigation source gave it; its ``MicroSeconds`` field
+#: holds tenths of milliseconds (0-9999), as the XTF specification says.
+_POSITION_PACKET = 107
 _PORT, _STARBOARD = 1, 2
 _NAV_DEGREES = 3
 _FILE_HEADER_BYTES = 1024
@@ -389,8 +392,8 @@ class XtfReader:
                 first = False
                 continue
             first = False
-            if start.HeaderType == _NAVIGATION_PACKET:
-                fix = _navigation_fix(fh.read(size - start_size), head)
+            if start.HeaderType in (_NAVIGATION_PACKET, _POSITION_PACKET):
+                fix = _navigation_fix(fh.read(size - start_size), head, start.HeaderType)
                 if fix is not None:
                     self.fixes.append(fix)
             if start.HeaderType != _SONAR_PACKET:
@@ -813,9 +816,15 @@ def _ping_time(ping: Any) -> float:
     return float(ms * 1000) * 1e-6  # as pyxtf's datetime64 in microseconds
 
 
-def _navigation_fix(body: bytes, head: bytes) -> tuple[float, float, float] | None:
-    """(time, x, y) of a navigation packet (type 42), or None when it holds no usable fix."""
-    nav = _pyxtf().XTFHeaderNavigation
+def _navigation_fix(
+    body: bytes, head: bytes, kind: int = _NAVIGATION_PACKET
+) -> tuple[float, float, float] | None:
+    """(time, x, y) of a navigation packet, or None when it holds no usable fix.
+
+    Type 42 (``XTFHEADER_NAVIGATION``) or 107 (``XTFPOSRAWNAVIGATION``).
+    """
+    raw_kind = kind == _POSITION_PACKET
+    nav = _pyxtf().XTFPosRawNavigation if raw_kind else _pyxtf().XTFHeaderNavigation
     raw = head + body
     if len(raw) < ctypes.sizeof(nav):
         return None
@@ -829,6 +838,8 @@ def _navigation_fix(body: bytes, head: bytes) -> tuple[float, float, float] | No
         return None
     hour, minute, second = int(packet.Hour), int(packet.Minute), int(packet.Second)
     micro = int(packet.Microsecond)
+    if raw_kind:  # tenths of milliseconds
+        micro = micro * 100 if micro <= 9999 else 1_000_000
     if hour > 23 or minute > 59 or second > 60 or micro > 999_999:
         return None
     seconds = ((day.toordinal() - _EPOCH_DAY) * 24 + hour) * 3600 + minute * 60 + second

@@ -164,6 +164,36 @@ def _fix(ping) -> bytes:
     return bytes(nav)
 
 
+def _raw_fix(ping) -> bytes:
+    """A raw position packet (type 107, its sub-second field in tenths of milliseconds)."""
+    nav = pyxtf.XTFPosRawNavigation()
+    nav.MagicNumber, nav.HeaderType = 0xFACE, 107
+    nav.NumBytesThisRecord = ctypes.sizeof(nav)
+    for name in ("Year", "Month", "Day", "Hour", "Minute", "Second"):
+        setattr(nav, name, getattr(ping, name))
+    nav.Microsecond = 100 * ping.HSeconds
+    nav.RawXcoordinate, nav.RawYcoordinate = ping.SensorXcoordinate, ping.SensorYcoordinate
+    return bytes(nav)
+
+
+@pytest.mark.parametrize("packet", [_fix, _raw_fix])
+def test_type_42_and_107_fixes_agree(tmp_path, packet):
+    """The same fixes as navigation (42) or raw position (107) packets give the same track."""
+    header, pings = _pings()
+    fixed = set(range(1, PINGS, 5)) | {PINGS - 1}
+    parts = [
+        (packet(ping) if k in fixed else b"") + _packet(_zeroed(ping), chans)
+        for k, (ping, chans) in enumerate(pings)
+    ]
+    path = tmp_path / f"{packet.__name__}.xtf"
+    path.write_bytes(bytes(header) + b"".join(parts))
+    _, nav = read_xtf(path)
+    _, own = read_xtf(SAMPLE, pings=(0, PINGS))
+    assert not nav.valid[0] and nav.valid[1:].all()
+    np.testing.assert_allclose(nav.x[1:], own.x[1:], rtol=0, atol=2e-6)
+    np.testing.assert_allclose(nav.y[1:], own.y[1:], rtol=0, atol=2e-6)
+
+
 def test_pings_without_a_position_take_the_navigation_packets(tmp_path):
     """Pings whose headers hold no position, and a navigation packet (type 42) before every
     fifth ping: each ping takes the fixes' position interpolated in time; the ping before the
