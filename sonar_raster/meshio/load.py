@@ -106,6 +106,8 @@ def _outward(part: MeshPart) -> MeshPart:
     return dataclasses.replace(part, faces=np.asarray(part.faces)[:, ::-1].copy())
 
 
+#: An ASCII STL's first bytes.
+_ASCII_STL = rb"(?:\xef\xbb\xbf)?\s*solid[^\n]*\n\s*(?:facet|endsolid)"
 #: What a model file's first bytes are, tried in order: (pattern, what it is, its ending).
 _SIGNATURES = (
     (rb"glTF", "binary glTF", ".glb"),
@@ -113,7 +115,7 @@ _SIGNATURES = (
     (rb"(?:\xef\xbb\xbf)?\s*#VRML V2", "VRML97", ".wrl"),
     (rb"(?:\xef\xbb\xbf)?ply\s", "PLY", ".ply"),
     (rb"(?:\xef\xbb\xbf)?\s*[CN]?OFF\s", "OFF", ".off"),
-    (rb"(?:\xef\xbb\xbf)?\s*solid[^\n]*\n\s*(?:facet|endsolid)", "ASCII STL", ".stl"),
+    (_ASCII_STL, "ASCII STL", ".stl"),
     (rb"(?:\xef\xbb\xbf)?\s*\{", "JSON (glTF)", ".gltf"),
     (rb"(?:\xef\xbb\xbf)?(?:\s*(?:#[^\n]*)?\n)*\s*(?:v|vn|vt|o|g|mtllib)[ \t]", "OBJ", ".obj"),
 )
@@ -215,7 +217,7 @@ def _binary_stl(path: Path) -> io.BytesIO | None:
     size = path.stat().st_size
     with open(path, "rb") as fh:
         head = fh.read(1024)
-    if size < _STL_HEAD + _STL_RECORD or re.match(_SIGNATURES[5][0], head):  # ASCII STL
+    if size < _STL_HEAD + _STL_RECORD or re.match(_ASCII_STL, head):
         return None
     count = int.from_bytes(head[80:84], "little")
     body = size - _STL_HEAD
@@ -230,10 +232,9 @@ def _binary_stl(path: Path) -> io.BytesIO | None:
         )
     elif body % _STL_RECORD == 0:
         log.info(
-            "%s: triangle count %d in its header, %d in the file; read %d",
+            "%s: triangle count %d in its header, %d in the file: those read",
             path.name,
             count,
-            body // _STL_RECORD,
             body // _STL_RECORD,
         )
         count = body // _STL_RECORD

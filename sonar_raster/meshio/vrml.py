@@ -688,10 +688,7 @@ def _indexed_face_set(node: _Node) -> tuple[np.ndarray, ...]:
     vertex = np.maximum(index, 0).astype(np.int64)
     corners = _fan(place) if convex else _ear_cut(points[vertex], place)
     corners = corners[_distinct(vertex[corners])]
-    bad = ~np.all(np.isfinite(points), axis=1)
-    if bad.any():  # 'nan' in the file: its faces dropped, the point made 0 (unused)
-        points[bad] = 0.0
-        corners = corners[~bad[vertex[corners]].any(axis=1)]
+    corners = corners[_finite(points, vertex[corners])]
     faces = vertex[corners]
     grey = _face_colours(node, index, corners)
     faces = faces if _flag(node, "ccw", True) else faces[:, [0, 2, 1]]
@@ -784,11 +781,16 @@ def _ear_cut(points: np.ndarray, index: np.ndarray) -> np.ndarray:
 
 def _finite_faces(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Drop faces with a NaN corner ('nan' in the file); NaN points become 0 (unused)."""
+    return faces[_finite(points, faces)] if len(faces) else faces
+
+
+def _finite(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Mask of the faces whose corners are finite; NaN points become 0 (unused)."""
     bad = ~np.all(np.isfinite(points), axis=1)
-    if not bad.any():
-        return faces
+    if not bad.any() or not len(faces):
+        return np.ones(len(faces), dtype=bool)
     points[bad] = 0.0
-    return faces[~bad[faces].any(axis=1)] if len(faces) else faces
+    return ~bad[faces].any(axis=1)
 
 
 def _whole(node: _Node, name: str, default: int) -> int:
