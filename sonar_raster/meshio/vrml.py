@@ -801,7 +801,7 @@ def _whole(node: _Node, name: str, default: int) -> int:
     return int(value)
 
 
-def _elevation_grid(node: _Node) -> tuple[np.ndarray, np.ndarray]:
+def _elevation_grid(node: _Node) -> tuple[np.ndarray, ...]:
     nx = _whole(node, "xDimension", 0)
     nz = _whole(node, "zDimension", 0)
     height = _numbers(node, "height")
@@ -819,8 +819,41 @@ def _elevation_grid(node: _Node) -> tuple[np.ndarray, np.ndarray]:
     a = (np.arange(nz - 1)[:, None] * nx + np.arange(nx - 1)).ravel()
     b, c, d = a + nx, a + nx + 1, a + 1
     faces = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
-    faces = _finite_faces(vertices, faces)
-    return vertices, faces if _flag(node, "ccw", True) else faces[:, [0, 2, 1]]
+    quad = np.tile(np.arange(a.size), 2)  # each triangle's grid cell
+    keep = _finite(vertices, faces)
+    faces, quad = faces[keep], quad[keep]
+    grey = _grid_colours(node, faces, quad, nx, nz)
+    faces = faces if _flag(node, "ccw", True) else faces[:, [0, 2, 1]]
+    return (vertices, faces) if grey is None else (vertices, faces, grey)
+
+
+def _grid_colours(
+    node: _Node, faces: np.ndarray, quad: np.ndarray, nx: int, nz: int
+) -> np.ndarray | None:
+    """Grey per triangle from an ElevationGrid's ``color`` node, or None.
+
+    VRML97: one colour per grid point (``colorPerVertex`` TRUE), a triangle taking its
+    corners' mean, or one per cell, x fastest. Too few colours are a warning, and the
+    Material's colour is used.
+    """
+    colour = node.fields.get("color")
+    if not isinstance(colour, _Node):
+        return None
+    grey = _numbers(colour, "color", width=3).reshape(-1, 3).mean(axis=1)
+    if not grey.size:
+        return None
+    per_vertex = _flag(node, "colorPerVertex", True)
+    needed = nx * nz if per_vertex else (nx - 1) * (nz - 1)
+    if grey.size < needed:
+        warnings.warn(
+            f"{node.src.name}:{node.src.line(node.pos)}: ElevationGrid has {grey.size} colours "
+            f"for {needed} {'points' if per_vertex else 'cells'}; the Material's colour is "
+            "used instead",
+            InputWarning,
+            stacklevel=2,
+        )
+        return None
+    return grey[faces].mean(axis=1) if per_vertex else grey[quad]
 
 
 def _box(node: _Node) -> tuple[np.ndarray, np.ndarray]:

@@ -667,3 +667,24 @@ def test_colour_indices_that_do_not_fit_are_a_warning_and_the_material_is_used(r
     with pytest.warns(InputWarning, match=message):
         r, _ = _face_greys("0 0 0, 1 1 1, 0.5 0.5 0.5", rest)
     np.testing.assert_allclose(r, 0.8)
+
+
+@pytest.mark.parametrize("per_vertex", [True, False])
+def test_elevation_grid_colours_per_point_or_per_cell(per_vertex):
+    """A 3 x 2 grid (x fastest): per point each triangle its corners' mean, per cell its cell's."""
+    greys = [0.0, 0.2, 0.4, 0.6, 0.8, 1.0] if per_vertex else [0.25, 0.75]
+    colours = ", ".join(f"{g:g} {g:g} {g:g}" for g in greys)
+    grid = (
+        f"ElevationGrid {{ xDimension 3 zDimension 2 height [0 0 0 0 0 0] "
+        f"colorPerVertex {'TRUE' if per_vertex else 'FALSE'} color Color {{ color [{colours}] }} }}"
+    )
+    (part,) = parse(shape(grid, MATERIAL))
+    tri = part.vertices[part.faces]
+    if per_vertex:  # point (i, j) at x = i, z = j has grey 0.2 (i + 3 j)
+        expected = (0.2 * (tri[:, :, 0] + 3 * tri[:, :, 2])).mean(axis=1)
+    else:
+        expected = np.where(tri[:, :, 0].mean(axis=1) < 1.0, 0.25, 0.75)
+    np.testing.assert_allclose(part.reflectivity, expected, atol=1e-9)
+    with pytest.warns(InputWarning, match="ElevationGrid has 1 colours"):
+        (plain,) = parse(shape(grid.replace(colours, "0.3 0.3 0.3"), MATERIAL))
+    np.testing.assert_allclose(plain.reflectivity, 0.8)
