@@ -458,6 +458,7 @@ def _seabed_spec(table: dict, where: str) -> SeabedSpec:
             f"{where}: give 'reflectivity' or 'material', not both (a material sets its own)"
         )
     relief = table.pop("micro_relief", None)
+    relief = None if relief is False else relief  # false: none, as leaving the key out
     if relief is True and material is None:
         raise SonarRasterError(
             f"{where}: micro_relief = true takes the seabed's 'material'; give one, or name "

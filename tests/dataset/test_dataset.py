@@ -691,9 +691,13 @@ def test_a_seabed_takes_its_drawn_sediments_micro_relief(tmp_path):
         assert record["cell_m"] == pytest.approx(1.5 * 12.0 / 256)
     assert set(seen) == {"rock", "mud"}
     assert min(seen["rock"]) > 2.0 * max(seen["mud"]) > 0.0  # rock is rougher (TR 9407 w2)
-    # without the key the flat seabed stays flat
-    plain = draw_sample(_config(tmp_path, SWATH, "plain.toml"), 3, 0).scene
-    assert np.ptp(plain.vertices[np.unique(plain.faces[plain.object_id == 0]), 2]) == 0.0
+    # without the key, or with it false, the flat seabed stays flat
+    for name, text in (
+        ("plain.toml", SWATH),
+        ("off.toml", SWATH.replace('kind = "flat"', 'kind = "flat"\nmicro_relief = false')),
+    ):
+        plain = draw_sample(_config(tmp_path, text, name), 3, 0).scene
+        assert np.ptp(plain.vertices[np.unique(plain.faces[plain.object_id == 0]), 2]) == 0.0
 
 
 def test_a_seabed_material_sets_its_law_and_reflectivity_in_both_scenes(tmp_path):
