@@ -388,19 +388,24 @@ def _check_ranges(dists: dict[str, Dist], where: str) -> None:
 
 def _sensor_dist(value: Any, where: str) -> Dist | None:
     """A sensor preset name or ``{ choice = [names] }`` (see ``sonar-raster sensors``)."""
-    if value is None:
-        return None
     from ..effects.presets import preset
 
+    return _names_dist(value, where, 'a sensor preset name such as "klein-3900-900"', preset)
+
+
+def _names_dist(value: Any, where: str, what: str, find: Any) -> Dist | None:
+    """A name or ``{ choice = [names] }``, each known to ``find``; None when not given.
+
+    ``find`` raises on a name it does not know, listing the known ones.
+    """
+    if value is None:
+        return None
     dist = parse_dist(value, where)
     if dist.kind not in ("fixed", "choice") or not all(isinstance(v, str) for v in dist.args):
-        raise SonarRasterError(
-            f'{where}: give a sensor preset name such as "klein-3900-900" or '
-            "{ choice = [names] } (sonar-raster sensors lists them)"
-        )
+        raise SonarRasterError(f"{where}: give {what} or {{ choice = [names] }}")
     for name in dist.args:
         try:
-            preset(name)
+            find(name)
         except SonarRasterError as exc:
             raise SonarRasterError(f"{where}: {exc}") from None
     return dist
@@ -500,18 +505,9 @@ def _scattering(value: Any, material: Dist | None, where: str) -> str:
 
 def _sediment_dist(value: Any, where: str) -> Dist | None:
     """A sediment name or ``{ choice = [names] }`` (see ``scenes.sediments.sediment``)."""
-    if value is None:
-        return None
     from ..scenes.sediments import sediment
 
-    dist = parse_dist(value, where)
-    if dist.kind not in ("fixed", "choice") or not all(isinstance(v, str) for v in dist.args):
-        raise SonarRasterError(
-            f'{where}: give a sediment name such as "sand" or {{ choice = [names] }}'
-        )
-    for name in dist.args:
-        sediment(name)  # an unknown name fails here, listing the known ones
-    return dist
+    return _names_dist(value, where, 'a sediment name such as "sand"', sediment)
 
 
 def _object_spec(table: dict, k: int, where: str) -> ObjectSpec:

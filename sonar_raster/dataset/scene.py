@@ -225,14 +225,15 @@ def draw_sample(config: DatasetConfig, seed: int, index: int) -> SampleScene:
     altitude, spacing, heading = float(t["altitude"]), float(t["spacing"]), float(t["heading_deg"])
     beam = None
     if sensor is not None:  # the preset's sonar where the config leaves a key out
-        own = preset(sensor).sonar(s.get("max_range"))
+        sensor_preset = preset(sensor)
+        own = sensor_preset.sonar(s.get("max_range"))
         if "beamwidth_deg" not in s:  # the preset's beam, its sidelobe floor included
             beam = own.beam
         s = {
             "frequency_hz": own.frequency_hz,
             "max_range": own.max_range,
             "tilt_deg": math.degrees(own.tilt),
-            "beamwidth_deg": preset(sensor).vertical_beamwidth_deg / math.sqrt(2.0),
+            "beamwidth_deg": sensor_preset.vertical_beamwidth_deg / math.sqrt(2.0),
             "sound_speed": own.sound_speed,
             **s,
         }

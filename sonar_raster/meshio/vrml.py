@@ -695,6 +695,15 @@ def _indexed_face_set(node: _Node) -> tuple[np.ndarray, ...]:
     return (points, faces) if grey is None else (points, faces, grey)
 
 
+def _colour_greys(node: _Node) -> np.ndarray | None:
+    """The RGB means of a geometry's ``color`` node, or None when it has no colours."""
+    colour = node.fields.get("color")
+    if not isinstance(colour, _Node):
+        return None
+    grey = _numbers(colour, "color", width=3).reshape(-1, 3).mean(axis=1)
+    return grey if grey.size else None
+
+
 def _face_colours(node: _Node, index: np.ndarray, corners: np.ndarray) -> np.ndarray | None:
     """Grey (RGB mean) per triangle from an IndexedFaceSet's ``color`` node, or None.
 
@@ -704,11 +713,8 @@ def _face_colours(node: _Node, index: np.ndarray, corners: np.ndarray) -> np.nda
     order). ``corners`` are the triangles' places in ``coordIndex``. Indices that do not fit
     the colours are a warning, and the Material's colour is used.
     """
-    colour = node.fields.get("color")
-    if not isinstance(colour, _Node):
-        return None
-    grey = _numbers(colour, "color", width=3).reshape(-1, 3).mean(axis=1)
-    if not grey.size:
+    grey = _colour_greys(node)
+    if grey is None:
         return None
     lookup = _numbers(node, "colorIndex")
     problem, wanted = None, np.zeros(0)
@@ -836,11 +842,8 @@ def _grid_colours(
     corners' mean, or one per cell, x fastest. Too few colours are a warning, and the
     Material's colour is used.
     """
-    colour = node.fields.get("color")
-    if not isinstance(colour, _Node):
-        return None
-    grey = _numbers(colour, "color", width=3).reshape(-1, 3).mean(axis=1)
-    if not grey.size:
+    grey = _colour_greys(node)
+    if grey is None:
         return None
     per_vertex = _flag(node, "colorPerVertex", True)
     needed = nx * nz if per_vertex else (nx - 1) * (nz - 1)

@@ -153,75 +153,64 @@ def _zeroed(ping, ship: tuple[float, float] = (0.0, 0.0)):
     return ping
 
 
-def _fix(ping) -> bytes:
-    """A navigation packet (type 42) at the ping's time and position."""
-    nav = pyxtf.XTFHeaderNavigation()
+#: The fixed pings of :func:`_with_fixes`: every fifth from the second, and the last.
+FIXED = [*range(1, PINGS, 5), PINGS - 1]
+
+
+def _fix(ping, raw: bool = False) -> bytes:
+    """A navigation packet (type 42) at the ping's time and position.
+
+    ``raw``: the same fix as a raw position packet (type 107, sub-seconds in tenths of ms).
+    """
+    nav = pyxtf.XTFPosRawNavigation() if raw else pyxtf.XTFHeaderNavigation()
+    nav.MagicNumber, nav.HeaderType = 0xFACE, 107 if raw else 42
     nav.NumBytesThisRecord = ctypes.sizeof(nav)
     for name in ("Year", "Month", "Day", "Hour", "Minute", "Second"):
         setattr(nav, name, getattr(ping, name))
-    nav.Microsecond = 10_000 * ping.HSeconds
+    nav.Microsecond = (100 if raw else 10_000) * ping.HSeconds
     nav.RawXcoordinate, nav.RawYcoordinate = ping.SensorXcoordinate, ping.SensorYcoordinate
     return bytes(nav)
 
 
-def _raw_fix(ping) -> bytes:
-    """A raw position packet (type 107, its sub-second field in tenths of milliseconds)."""
-    nav = pyxtf.XTFPosRawNavigation()
-    nav.MagicNumber, nav.HeaderType = 0xFACE, 107
-    nav.NumBytesThisRecord = ctypes.sizeof(nav)
-    for name in ("Year", "Month", "Day", "Hour", "Minute", "Second"):
-        setattr(nav, name, getattr(ping, name))
-    nav.Microsecond = 100 * ping.HSeconds
-    nav.RawXcoordinate, nav.RawYcoordinate = ping.SensorXcoordinate, ping.SensorYcoordinate
-    return bytes(nav)
+def _with_fixes(path: Path, fixes: bool = True, raw: bool = False) -> Path:
+    """The sample's first pings without positions, a fix before each of :data:`FIXED`.
 
-
-@pytest.mark.parametrize("packet", [_fix, _raw_fix])
-def test_type_42_and_107_fixes_agree(tmp_path, packet):
-    """The same fixes as navigation (42) or raw position (107) packets give the same track."""
+    ``fixes`` False: no fix packets.
+    """
     header, pings = _pings()
-    fixed = set(range(1, PINGS, 5)) | {PINGS - 1}
     parts = [
-        (packet(ping) if k in fixed else b"") + _packet(_zeroed(ping), chans)
+        (_fix(ping, raw) if fixes and k in FIXED else b"") + _packet(_zeroed(ping), chans)
         for k, (ping, chans) in enumerate(pings)
     ]
-    path = tmp_path / f"{packet.__name__}.xtf"
     path.write_bytes(bytes(header) + b"".join(parts))
-    _, nav = read_xtf(path)
-    _, own = read_xtf(SAMPLE, pings=(0, PINGS))
-    assert not nav.valid[0] and nav.valid[1:].all()
-    np.testing.assert_allclose(nav.x[1:], own.x[1:], rtol=0, atol=2e-6)
-    np.testing.assert_allclose(nav.y[1:], own.y[1:], rtol=0, atol=2e-6)
+    return path
 
 
 def test_pings_without_a_position_take_the_navigation_packets(tmp_path):
     """Pings whose headers hold no position, and a navigation packet (type 42) before every
     fifth ping: each ping takes the fixes' position interpolated in time; the ping before the
     first fix keeps none. Without the packets no ping has a position."""
-    header, pings = _pings()
-    fixed = [k for k in range(1, PINGS, 5)] + [PINGS - 1]
-    parts, bare = [], []
-    for k, (ping, chans) in enumerate(pings):
-        packet = _packet(_zeroed(ping), chans)
-        parts.append((_fix(ping) if k in fixed else b"") + packet)
-        bare.append(packet)
-    path = tmp_path / "navpackets.xtf"
-    path.write_bytes(bytes(header) + b"".join(parts))
+    path = _with_fixes(tmp_path / "navpackets.xtf")
     _, nav = read_xtf(path)
-    (tmp_path / "bare.xtf").write_bytes(bytes(header) + b"".join(bare))
-    assert not read_xtf(tmp_path / "bare.xtf")[1].valid.any()
+    assert not read_xtf(_with_fixes(tmp_path / "bare.xtf", fixes=False))[1].valid.any()
     assert not nav.valid[0] and nav.valid[1:].all()
-    x = np.array([p.SensorXcoordinate for p, _ in pings])
-    y = np.array([p.SensorYcoordinate for p, _ in pings])
-    np.testing.assert_array_equal(nav.x[fixed], x[fixed])
-    np.testing.assert_array_equal(nav.y[fixed], y[fixed])
-    expected = np.interp(nav.time[1:], nav.time[fixed], x[fixed])
+    pings = [p for p, _ in _pings()[1]]
+    x = np.array([p.SensorXcoordinate for p in pings])
+    y = np.array([p.SensorYcoordinate for p in pings])
+    np.testing.assert_array_equal(nav.x[FIXED], x[FIXED])
+    np.testing.assert_array_equal(nav.y[FIXED], y[FIXED])
+    expected = np.interp(nav.time[1:], nav.time[FIXED], x[FIXED])
     np.testing.assert_allclose(nav.x[1:], expected, rtol=0, atol=1e-9)
     assert np.max(np.abs(nav.x[1:] - x[1:])) < 2e-6  # degrees: within 0.15 m of the pings' own
     # a ping range ending between two fixes: its last pings as when the whole file is read
     _, part = read_xtf(path, pings=(0, 8))
     np.testing.assert_array_equal(part.valid, nav.valid[:8])
     np.testing.assert_array_equal(part.x, nav.x[:8])
+    # the same fixes as raw position packets (type 107) give the same track
+    _, raw = read_xtf(_with_fixes(tmp_path / "raw.xtf", raw=True))
+    np.testing.assert_array_equal(raw.valid, nav.valid)
+    np.testing.assert_allclose(raw.x, nav.x, rtol=0, atol=1e-12, equal_nan=True)
+    np.testing.assert_allclose(raw.y, nav.y, rtol=0, atol=1e-12, equal_nan=True)
 
 
 def test_a_ping_with_only_the_ship_position_takes_it(tmp_path):
