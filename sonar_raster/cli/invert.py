@@ -170,6 +170,20 @@ def add_parser(sub: Any) -> None:
         metavar="S",
         help="profiles: seabed slope (rise over run) assumed on speckled images (default 0.2)",
     )
+    inv.add_argument(
+        "--law",
+        metavar="NAME",
+        help="the seabed's scattering law the surface fit models: lambert (default) or a "
+        "sediment (sand, mud, clay, gravel, rock or a TR 9407 name such as 'fine sand'), "
+        "whose APL-UW law at the sonar's frequency is taken; picks --method surface",
+    )
+    inv.add_argument(
+        "--frequency",
+        type=cli_positive(float),
+        metavar="KHZ",
+        help="--law: the sonar's centre frequency in kHz (default: the image's header as "
+        "render writes it, or the XTF file's channels)",
+    )
     inv.add_argument("--no-mesh", action="store_true", help="skip seabed.glb and seabed.ply")
     inv.add_argument("--no-previews", action="store_true", help="skip the preview renders")
     inv.add_argument(
@@ -188,6 +202,7 @@ def run(args: argparse.Namespace) -> int:
     """Run ``sonar-raster invert``: one side of an image, or both sides of an XTF file."""
     images = list(args.image) if isinstance(args.image, (list, tuple)) else [args.image]
     xtf = [Path(p).suffix.lower() == ".xtf" for p in images]
+    _check_law(args)
     if args.beam:  # read before anything is estimated or loaded: a bad path is the first error
         from ..inversion.solver import load_beams
 
@@ -217,6 +232,7 @@ def run(args: argparse.Namespace) -> int:
     if args.method == "surface":
         return _invert_surface(args, loaded)
     _refuse_coarsen(args)
+    _refuse_law(args)
     from ..inversion.method import SPECKLED_LOOKS
     from ..inversion.solver import BeamProfile, invert
     from ..inversion.write import energy_summary, write_products
@@ -301,6 +317,9 @@ def _choose_method(args: argparse.Namespace, lines: list[dict[str, Any]]) -> Non
     elif args.coarsen != 1:
         args.method = "surface"
         reason = "method: surface (--coarsen is the surface fit's)"
+    elif _law_given(args):
+        args.method = "surface"
+        reason = "method: surface (--law is the surface fit's)"
     else:
         looks = args.looks if isinstance(args.looks, float) else None
         choice = choose_method(lines, looks, args.coarsen)
@@ -359,6 +378,7 @@ def _invert_surface(args: argparse.Namespace, loaded: tuple | None = None) -> in
     """``invert --method surface``: both sides (or ``--side``) in one fit; ``loaded``: read."""
     import numpy as np
 
+    from ..inversion.law import resolve_law
     from ..inversion.solver import load_beams
     from ..inversion.surface import invert_line
     from ..inversion.write import product_jobs
@@ -378,6 +398,7 @@ def _invert_surface(args: argparse.Namespace, loaded: tuple | None = None) -> in
         max_iter=args.max_iter,
         finest=args.coarsen,
         beam=load_beams(args.beam) if args.beam else None,
+        law=resolve_law(_law(args), _image_frequency(Path(args.image))),
         progress=None if args.quiet else print,
     )
     out = Path(args.output)
@@ -742,13 +763,61 @@ def _line_options(args: argparse.Namespace, beam_profile: Any) -> dict[str, Any]
             "looks": args.looks,
             "beam": beam,
             "finest": args.coarsen,
+            "law": _law(args),
         }
     _refuse_coarsen(args)
+    _refuse_law(args)
     options: dict[str, Any] = {"max_iter": args.max_iter, "looks": args.looks}
     options.update(_given(args, PROFILE_OPTIONS))
     if args.beam:
         options["beam"] = beam_profile.load(args.beam)
     return options
+
+
+def _law_given(args: argparse.Namespace) -> bool:
+    """Whether ``--law`` names a law other than Lambert's."""
+    return args.law is not None and args.law.strip().lower() != "lambert"
+
+
+def _check_law(args: argparse.Namespace) -> None:
+    """Refuse an unknown ``--law`` and a ``--frequency`` without one, before any work."""
+    from ..inversion.law import scattering_law
+
+    if args.frequency is not None and not _law_given(args):
+        raise SonarRasterError("--frequency is for --law (a sediment's law); leave it out")
+    if _law_given(args):
+        scattering_law(args.law, args.frequency * 1e3 if args.frequency else 1e5)
+
+
+def _law(args: argparse.Namespace) -> Any:
+    """``--law`` for the fit: None (Lambert), a law at ``--frequency``, or the name alone.
+
+    A name alone is taken at each line's recorded frequency (:func:`..inversion.law.resolve_law`).
+    """
+    from ..inversion.law import scattering_law
+
+    if not _law_given(args):
+        return None
+    if args.frequency is not None:
+        return scattering_law(args.law, args.frequency * 1e3)
+    return args.law
+
+
+def _image_frequency(path: Path) -> float | None:
+    """The sonar frequency an image's header records (``sonar:frequency_hz``), Hz, or None."""
+    from ..io.images import read_spec
+
+    spec = None if path.suffix.lower() == ".npy" else read_spec(path)
+    attrs = {} if spec is None else {a.name: a.value for a in spec.extra_attribs}
+    return _header_float(attrs, "sonar:frequency_hz")
+
+
+def _refuse_law(args: argparse.Namespace) -> None:
+    """``--law`` is the surface fit's; the per-ping profiles model Lambert's law."""
+    if _law_given(args):
+        raise SonarRasterError(
+            "--law is for --method surface; the per-ping profiles model Lambert's law"
+        )
 
 
 def _refuse_coarsen(args: argparse.Namespace) -> None:

@@ -395,8 +395,9 @@ def invert_lines(
         Progress bars (profiles) or per-step lines (surface).
     **options
         ``"profiles"``: :func:`.solver.invert`'s options; ``"surface"``: ``looks``,
-        ``max_iter``, ``beam`` (a calibrated profile, one or per side) and ``finest`` (the
-        finest level's pooling); others are refused.
+        ``max_iter``, ``beam`` (a calibrated profile, one or per side), ``finest`` (the
+        finest level's pooling) and ``law`` (a :class:`.law.ScatteringLaw`, or a sediment's
+        name taken at each line's recorded frequency); others are refused.
 
     Returns
     -------
@@ -430,8 +431,11 @@ def invert_lines(
 
 
 def surface_options(options: dict[str, Any]) -> dict[str, Any]:
-    """The surface fit's options (``looks``, ``max_iter``, ``beam``, ``finest``); others refused."""
-    unused = sorted(set(options) - {"looks", "max_iter", "beam", "finest"})
+    """The surface fit's options (``looks``, ``max_iter``, ``beam``, ``finest``); others refused.
+
+    ``law`` (a line's, :func:`.law.resolve_law`) is taken too and left out of the result.
+    """
+    unused = sorted(set(options) - {"looks", "max_iter", "beam", "finest", "law"})
     if unused:
         raise SonarRasterError(f"{', '.join(unused)} not used by the surface fit; leave it out")
     looks = options.get("looks", "auto")
@@ -451,6 +455,7 @@ def _surface(
     Where lines overlap they share the seabed, and Φ is shared by all; the transducer heights
     come from the sensor depth when every line records it.
     """
+    from .law import resolve_law
     from .surface import Line as SurfaceLine
     from .surface import invert_lines as fit_together
 
@@ -463,6 +468,7 @@ def _surface(
             line.heading,
             altitude=np.full(len(line.pings), float(altitude)) if altitude else None,
             height=-line.depth if depth else None,
+            law=resolve_law(options.get("law"), line.frequency_hz),
         )
         for line in lines
     ]

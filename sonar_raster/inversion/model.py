@@ -41,6 +41,13 @@ Either deposit carries the foreshortening ``dr/dx = (x + Z Zx) / ρ`` and the mi
 of relief in slant range, and sums the cells that fold onto one range (layover) as the
 renderer does.
 
+A seabed that is not Lambertian (``Geometry.law``, :class:`.law.ScatteringLaw`) returns
+``R f(θ) dA = R cos θ L(cos θ) dA``: q becomes ``q̃ = q L(c)`` with ``c = cos θ = q / s``, and
+its derivatives follow by the chain rule (:func:`_apply_law`). There ``s`` is taken as
+``sqrt(1 + Zx²)``, leaving out Zy (each ping's model knows its own profile only): a slope Zy
+along the track changes ``c`` by a factor ``1 − Zy²/2`` to second order (0.5 % at a slope of
+0.1), which moves ``ln L`` by ``c g`` times that.
+
 The terms that depend on Z alone (q, its derivatives, every point's bins, weights and
 ``Z_s/ρ_s``) are prepared once per Z and reused by :func:`forward`, :func:`adjoint`,
 :func:`evaluate` and :func:`jacobian_z` while Z is unchanged (a per-thread cache of the last
@@ -56,6 +63,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import sparse
 from scipy.sparse.linalg import spsolve
+
+from .law import ScatteringLaw
 
 
 def slope(z: np.ndarray, axis: int, step: float) -> np.ndarray:
@@ -143,6 +152,8 @@ class Geometry:
         nearest bin centres; ``"segment"`` uniformly over the slant-range interval of the
         point's tangent-plane segment, each bin taking its exact overlap with the interval
         (the renderer's boxes; see the module notes).
+    law : ScatteringLaw or None
+        The seabed's scattering law (None: Lambert's); see the module notes.
     """
 
     x: np.ndarray
@@ -152,6 +163,7 @@ class Geometry:
     bins: int
     subsamples: int = 1
     deposit: str = "tent"
+    law: ScatteringLaw | None = None
 
     def __post_init__(self) -> None:
         if self.deposit not in DEPOSITS:
@@ -237,6 +249,7 @@ def _cells(z: np.ndarray, geom: Geometry) -> _Cells | _Segments:
         int(geom.bins),
         int(geom.subsamples),
         geom.deposit,
+        geom.law,  # compared by identity
         z.shape,
     )
     entries = _STORE.entries
@@ -374,6 +387,30 @@ def _fill_lit(
     np.divide(-1.0, rho, out=dq_dz)
     dq_dz -= b
     dq_dz *= lit
+    if geom.law is not None:
+        _apply_law(geom.law, (q, dq_dz, dq_dzx), zx)
+
+
+def _apply_law(
+    law: ScatteringLaw, out: tuple[np.ndarray, np.ndarray, np.ndarray], zx: np.ndarray
+) -> None:
+    """Lambert's q and its derivatives times the law's factor ``L(c)``, in place.
+
+    ``q̃ = q L(c)`` with ``c = q / s``, ``s = sqrt(1 + Zx²)`` (see the module notes):
+    ``∂q̃/∂Z = ∂q/∂Z · L (1 + c g)`` and
+    ``∂q̃/∂Zx = ∂q/∂Zx · L (1 + c g) − q̃ c g Zx / s²``, ``g = d ln L / dc``.
+    """
+    q, dq_dz, dq_dzx = out
+    s2 = 1.0 + zx * zx
+    c = q / np.sqrt(s2)
+    log_l, g = law.log_factor_at(c)
+    factor = np.exp(log_l)
+    q *= factor
+    cg = c * g
+    chain = factor * (1.0 + cg)
+    dq_dz *= chain
+    dq_dzx *= chain
+    dq_dzx -= q * cg * zx / s2
 
 
 def _splat_block(

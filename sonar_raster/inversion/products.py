@@ -18,9 +18,14 @@ the texture of the 3D views. NaN where there is no estimate or ``Φ cos⟨θ⟩`
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from .ground import sample_ground
+
+if TYPE_CHECKING:
+    from .law import ScatteringLaw
 
 #: ``Φ cos⟨θ⟩`` below this fraction of its median leaves an evenly lit cell undefined (NaN).
 EVEN_FLOOR = 1e-6
@@ -61,7 +66,11 @@ def mean_incidence_cos(x: np.ndarray, elevation: np.ndarray) -> np.ndarray:
 
 
 def even_illumination(
-    reprojected: np.ndarray, beam: np.ndarray, x: np.ndarray, elevation: np.ndarray
+    reprojected: np.ndarray,
+    beam: np.ndarray,
+    x: np.ndarray,
+    elevation: np.ndarray,
+    law: ScatteringLaw | None = None,
 ) -> np.ndarray:
     """The evenly illuminated ground-range image of Eq. 22 (see the module notes).
 
@@ -75,13 +84,19 @@ def even_illumination(
         Ground-range cell centres, metres.
     elevation : ndarray, shape (pings, cells)
         Recovered Z, metres.
+    law : ScatteringLaw, optional
+        The seabed's law the fit modelled: the gain is then ``Φ cos⟨θ⟩ L(cos⟨θ⟩)``.
 
     Returns
     -------
     ndarray, shape (pings, cells), float64
         ``G / (Φ cos⟨θ⟩)``, reflectivity-like; NaN where undefined.
     """
-    gain = beam * mean_incidence_cos(x, elevation)
+    cos = mean_incidence_cos(x, elevation)
+    gain = beam * cos
+    if law is not None:
+        with np.errstate(invalid="ignore"):
+            gain = gain * np.exp(law.log_factor_at(np.nan_to_num(cos, nan=0.0))[0])
     ok = np.isfinite(gain) & np.isfinite(reprojected)
     positive = gain[ok & (gain > 0)]
     floor = EVEN_FLOOR * float(np.median(positive)) if positive.size else np.inf

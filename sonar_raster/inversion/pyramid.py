@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy import ndimage
@@ -71,7 +71,7 @@ def build(
         reach = np.sqrt((x[-1] - geom.dx * f) ** 2 + alt[:, None] ** 2)
         centres = (np.arange(bins) + 0.5) * rb
         slant_weight = (centres[None, :] <= reach).astype(np.float64)
-        grid = Geometry(x, geom.dx * f, geom.dy * f, rb, bins, geom.subsamples, geom.deposit)
+        grid = replace(geom, x=x, dx=geom.dx * f, dy=geom.dy * f, range_bin=rb, bins=bins)
         out.append(Level(_pool(image, f), weight, _pool(slant, f), slant_weight, alt, grid, f))
     return out[::-1]
 

@@ -160,7 +160,9 @@ def invert_xtf(
         Dual-frequency files: the channels to read (``read_xtf``'s ``frequency``).
     **options
         Passed to :func:`.solver.invert` (``max_iter``, ``levels``, ``tol``,
-        ``beam``); for ``"surface"`` only ``max_iter``, ``looks``, ``beam`` and ``finest``.
+        ``beam``); for ``"surface"`` only ``max_iter``, ``looks``, ``beam``, ``finest`` and
+        ``law`` (a :class:`.law.ScatteringLaw`, or a sediment's name taken at the file's
+        recorded frequency).
 
     Returns
     -------
@@ -193,12 +195,13 @@ def invert_xtf(
     for slant in slants.values():
         slant[:, :blank] = 0.0  # the transmit pulse is not seabed
     if method == "surface":
+        from .law import resolve_law
         from .lines import surface_options
         from .surface import Line, invert_lines
 
         line = Line.straight(
             slants, dr, ping_spacing or dr,
-            altitude=given,
+            altitude=given, law=resolve_law(options.get("law"), image.sonar.frequency_hz),
         )  # fmt: skip
         results = invert_lines(
             [line], progress=print if progress else None, **surface_options(options)

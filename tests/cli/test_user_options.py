@@ -265,3 +265,31 @@ def test_the_profiles_priors_are_refused_by_the_surface_fit_and_choose_the_profi
         # without --method they pick the profiles on this speckled image
         assert main([*base, "--no-previews", "--max-iter", "2", *option, "-o", str(out)]) == 0
         assert capsys.readouterr().out.startswith(f"method: profiles ({option[0]}")
+
+
+def test_a_scattering_law_picks_the_surface_fit_and_its_mistakes_are_one_line(tmp_path, capsys):
+    rng = np.random.default_rng(2)
+    k = np.arange(128)
+    image = np.where(k >= 30, 20.0 / np.maximum(k - 10.0, 1.0), 0.0) * rng.exponential(
+        size=(24, 128)
+    )
+    np.save(tmp_path / "img.npy", image)
+    base = ["invert", str(tmp_path / "img.npy"), "--range-bin", "0.05", "--no-mesh"]
+    mistakes = (
+        (["--law", "granite"], "--law: unknown material 'granite'"),
+        (["--frequency", "400"], "--frequency is for --law"),
+        (["--law", "sand"], "give it with --frequency"),  # a .npy records no frequency
+        (["--law", "sand", "--frequency", "400", "--method", "profiles"], "--method surface"),
+    )
+    for k, (option, message) in enumerate(mistakes):
+        out = tmp_path / f"bad{k}"
+        assert main([*base, *option, "-o", str(out)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and message in err[0], err
+        assert not out.exists()
+    out = tmp_path / "sand"
+    law = ["--law", "fine sand", "--frequency", "400"]
+    assert main([*base, *law, "--no-previews", "--max-iter", "2", "-o", str(out)]) == 0
+    assert capsys.readouterr().out.startswith("method: surface (--law")
+    doc = json.loads(next(out.rglob("inversion.json")).read_text())
+    assert doc["settings"]["law"] == "fine sand at 400 kHz"

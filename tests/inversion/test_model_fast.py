@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from sonar_raster.inversion import model
+from sonar_raster.inversion.law import ScatteringLaw, scattering_law
 from sonar_raster.inversion.model import Geometry, adjoint, forward, jacobian_z
 
 BINS = 27
@@ -31,6 +32,11 @@ def _reference(r, phi, z, geom: Geometry) -> np.ndarray:
                 zx = (z[p, j + 1] - z[p, j - 1]) / (2 * h)
             x = geom.x[j]
             q = max(0.0, x * zx - z[p, j]) / math.hypot(x, z[p, j])
+            if geom.law is not None and q > 0:
+                # cos θ between the facet's normal (−Zx, 1) and the way to the sonar (−x, −Z)
+                normal = np.array([-zx, 1.0]) / math.hypot(zx, 1.0)
+                cos = float(normal @ np.array([-x, -z[p, j]])) / math.hypot(x, z[p, j])
+                q *= math.exp(float(geom.law.log_factor_at(np.array([cos]))[0][0]))
             e = phi[p, j] * r[p, j] * q * h / n
             for s in range(n):
                 o = ((s + 0.5) / n - 0.5) * h
@@ -44,11 +50,15 @@ def _reference(r, phi, z, geom: Geometry) -> np.ndarray:
     return out / geom.range_bin
 
 
-def _case(subsamples: int, seed: int = 4):
+#: Medium sand's APL-UW law at 400 kHz: the model's cells times its factor of cos θ.
+SAND = scattering_law("sand", 400e3)
+
+
+def _case(subsamples: int, seed: int = 4, law: ScatteringLaw | None = None):
     """3 pings × 12 cells: layover, a shadowed cell, points beyond both ends of the bins."""
     rng = np.random.default_rng(seed)
     x = 0.05 + 0.6 * np.arange(12)
-    geom = Geometry(x, 0.6, 0.4, 0.25, BINS, subsamples)
+    geom = Geometry(x, 0.6, 0.4, 0.25, BINS, subsamples, law=law)
     z = -2.5 + 0.3 * rng.standard_normal((3, 12))
     z[0, 3] += 2.0  # a spike: its near face folds over (layover), its far side is unlit
     z[1, :2] = (-0.05, -0.3)  # the nearest cell lit above the first bin's centre (k0 = -1)
@@ -62,9 +72,10 @@ def x_zx_minus_z(z: np.ndarray, geom: Geometry) -> np.ndarray:
     return geom.x[None, :] * model.slope(z, 1, geom.dx) - z
 
 
+@pytest.mark.parametrize("law", [None, SAND], ids=["lambert", "sand"])
 @pytest.mark.parametrize("subsamples", [1, 2, 3])
-def test_forward_matches_the_loop_reference(subsamples):
-    geom, r, phi, z = _case(subsamples)
+def test_forward_matches_the_loop_reference(subsamples, law):
+    geom, r, phi, z = _case(subsamples, law=law)
     unlit = x_zx_minus_z(z, geom) <= 0
     assert unlit.any() and (~unlit).sum() > 20  # shadowed and lit cells are both covered
     ref = _reference(r, phi, z, geom)
@@ -105,9 +116,10 @@ def _away_from_kinks(z: np.ndarray, geom: Geometry, margin: float) -> bool:
     return bool(np.all(np.abs(x_zx_minus_z(z, geom)) > margin))
 
 
+@pytest.mark.parametrize("law", [None, SAND], ids=["lambert", "sand"])
 @pytest.mark.parametrize("subsamples", [1, 2, 3])
-def test_adjoint_and_jacobian_match_the_reference_derivatives(subsamples):
-    geom, r, phi, z = _case(subsamples)
+def test_adjoint_and_jacobian_match_the_reference_derivatives(subsamples, law):
+    geom, r, phi, z = _case(subsamples, law=law)
     assert _away_from_kinks(z, geom, 1e-4)  # central differences are exact to O(h²) here
     jr, jphi, jz = _dense_jacobians(r, phi, z, geom)
     rng = np.random.default_rng(7)

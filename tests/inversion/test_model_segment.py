@@ -9,9 +9,14 @@ import pytest
 
 from sonar_raster.inversion import model
 from sonar_raster.inversion.ground import ground_axis
+from sonar_raster.inversion.law import ScatteringLaw, scattering_law
 from sonar_raster.inversion.model import Geometry, adjoint, energy, evaluate, forward, jacobian_z
 
 ALT, BIN, BINS = 12.0, 0.05, 400
+
+
+#: Medium sand's APL-UW law at 400 kHz.
+SAND = scattering_law("sand", 400e3)
 
 
 def _boxes(r, phi, z, geom: Geometry, points: int) -> np.ndarray:
@@ -57,12 +62,12 @@ def test_flat_seabed_matches_boxes(subsamples):
     assert np.max(np.abs(seg[lit] - fine[lit]) / fine[lit]) < 1e-3
 
 
-def _wavy(subsamples: int, seed: int = 1):
+def _wavy(subsamples: int, seed: int = 1, law: ScatteringLaw | None = None):
     """3 pings × 12 cells of a wavy lit seabed; 0.6 m cells over 0.25 m bins, so that one
     cell's interval covers up to three bins."""
     rng = np.random.default_rng(seed)
     x = 0.4 + 0.6 * np.arange(12)
-    geom = Geometry(x, 0.6, 0.4, 0.25, 40, subsamples, "segment")
+    geom = Geometry(x, 0.6, 0.4, 0.25, 40, subsamples, "segment", law)
     waves = 0.3 * np.sin(x / 1.3 + np.arange(3)[:, None])
     z = -5.0 + waves + 0.05 * rng.standard_normal((3, 12))
     r, phi = rng.uniform(0.4, 1.2, z.shape), rng.uniform(0.5, 2.0, z.shape)
@@ -93,9 +98,10 @@ def _central(f, v: np.ndarray, h: float = 1e-6) -> np.ndarray:
     return np.array(out)
 
 
+@pytest.mark.parametrize("law", [None, SAND], ids=["lambert", "sand"])
 @pytest.mark.parametrize("subsamples", [1, 2, 3])
-def test_adjoint_matches_central_differences(subsamples):
-    geom, r, phi, z, rng = _wavy(subsamples)
+def test_adjoint_matches_central_differences(subsamples, law):
+    geom, r, phi, z, rng = _wavy(subsamples, law=law)
     _away_from_kinks(z, geom)
     assert int(model._segment_cells(z, geom).reach[0]) >= (3 if subsamples == 1 else 2)
     g = rng.standard_normal((3, geom.bins))
@@ -110,9 +116,10 @@ def test_adjoint_matches_central_differences(subsamples):
         np.testing.assert_allclose(exact, numeric, rtol=0, atol=1e-6 * np.abs(numeric).max())
 
 
+@pytest.mark.parametrize("law", [None, SAND], ids=["lambert", "sand"])
 @pytest.mark.parametrize("subsamples", [1, 2])
-def test_jacobian_matches_central_differences(subsamples):
-    geom, r, phi, z, rng = _wavy(subsamples, seed=2)
+def test_jacobian_matches_central_differences(subsamples, law):
+    geom, r, phi, z, rng = _wavy(subsamples, seed=2, law=law)
     _away_from_kinks(z, geom)
     w = rng.uniform(0.5, 2.0, (3, geom.bins))
     w[:, :5] = 0.0

@@ -12,14 +12,17 @@ taken at each ground cell's own depression angle.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 from scipy import ndimage
 
 from sonar_raster.inversion import model
+from sonar_raster.inversion.law import ScatteringLaw, scattering_law
 from sonar_raster.scene import build_scene
 from sonar_raster.scenes.seabed import from_grid
+from sonar_raster.scenes.sediments import material_index
 from sonar_raster.sonar import BeamPattern, Sonar
 from sonar_raster.trajectory import Trajectory
 
@@ -40,26 +43,32 @@ def _height(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return waves + mound
 
 
-def _model_image(deposit: str, gain_angle: str = "own") -> np.ndarray:
+def _model_image(
+    deposit: str, gain_angle: str = "own", law: ScatteringLaw | None = None
+) -> np.ndarray:
     x = np.arange(FINE / 2, 29.0, FINE)
     y = np.arange(PINGS) * SPACING
     z = _height(x[None, :], y[:, None]) - ALT
-    geom = model.Geometry(x, FINE, SPACING, BIN, SONAR.n_bins, 1, deposit)
+    geom = model.Geometry(x, FINE, SPACING, BIN, SONAR.n_bins, 1, deposit, law)
     flat = np.broadcast_to(np.arctan2(ALT, x), z.shape)
     angle = np.arctan2(-z, x) if gain_angle == "own" else flat
     return model.forward(np.full_like(z, R), SONAR.gain(angle), z, geom) * BIN * SPACING
 
 
-@pytest.fixture(scope="module")
-def rendered(gl_renderer) -> np.ndarray:
+def _render(renderer, law: int = 0) -> np.ndarray:
     half, y0 = 33.0, -3.0
     x = np.arange(-half, half + CELL / 2, CELL)
     y = np.arange(y0, PINGS * SPACING + 3.0, CELL)
     xx, yy = np.meshgrid(x, y)
     field = from_grid(_height(xx, yy), CELL, CELL, x0=-half, y0=y0)
     track = Trajectory.straight((0.0, 0.0, ALT), 0.0, SPACING, PINGS)
-    image = gl_renderer.render(build_scene([field.mesh(R)]), SONAR, track)
+    image = renderer.render(build_scene([replace(field.mesh(R), law=law)]), SONAR, track)
     return image.sides["starboard"].astype(np.float64)
+
+
+@pytest.fixture(scope="module")
+def rendered(gl_renderer) -> np.ndarray:
+    return _render(gl_renderer)
 
 
 def _compare(rendered: np.ndarray, modelled: np.ndarray) -> tuple[np.ndarray, float]:
@@ -92,3 +101,17 @@ def test_the_beam_at_the_flat_seabeds_angle_is_not_the_renderers(rendered):
     evaluated at), so the check above would catch a model that ignored it."""
     rel, _ = _compare(rendered, _model_image("segment", gain_angle="flat"))
     assert np.quantile(np.abs(rel), 0.99) > 0.03
+
+
+def test_a_seabeds_scattering_law_is_the_renderers(gl_renderer):
+    """Medium sand's APL-UW law on the faces: the model with the law (:mod:`..law`, its
+    factor of each cell's cos θ, the along-track slope left out of cos θ) against the
+    renderer's per-fragment table lookup; Lambert's model on the same render is far off."""
+    sand = scattering_law("sand", SONAR.frequency_hz)
+    image = _render(gl_renderer, material_index("sand"))
+    rel, slope = _compare(image, _model_image("segment", law=sand))
+    assert np.median(np.abs(rel)) < 0.005
+    assert np.quantile(np.abs(rel), 0.99) < 0.1
+    assert abs(slope - 1.0) < 0.01
+    lambert, _ = _compare(image, _model_image("segment"))
+    assert np.median(np.abs(lambert)) > 0.2

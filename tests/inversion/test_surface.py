@@ -11,13 +11,14 @@ from scipy import sparse
 
 from sonar_raster.errors import SonarRasterError
 from sonar_raster.inversion import surface
+from sonar_raster.inversion.law import scattering_law
 from sonar_raster.inversion.solver import BeamProfile
 from sonar_raster.inversion.surface import layout, solve
 from sonar_raster.inversion.surface import problem as problem_module
 from sonar_raster.inversion.surface.problem import soft_shadow
 
 
-def _problem(seed: int = 0, shadows: bool = True, lines: int = 1):
+def _problem(seed: int = 0, shadows: bool = True, lines: int = 1, law=None):
     """Random images on one line (or several overlapping ones) and parameters near the start."""
     rng = np.random.default_rng(seed)
     pings, bins, rb = 10, 110, 0.1
@@ -32,7 +33,7 @@ def _problem(seed: int = 0, shadows: bool = True, lines: int = 1):
         if k % 2:
             position = position[::-1].copy()
         looks = 1.0 + k
-        made.append(layout.Line(images, rb, position, heading, np.full(pings, 5.0)))
+        made.append(layout.Line(images, rb, position, heading, np.full(pings, 5.0), law=law))
     problem = solve.problem_at(made, looks=looks, z_knot=0.4, r_knot=0.4)
     p = solve._start(problem) + rng.normal(0.0, 0.05, problem.size)
     if shadows:  # two ridges across track cast shadows behind them
@@ -43,9 +44,14 @@ def _problem(seed: int = 0, shadows: bool = True, lines: int = 1):
     return problem, p, rng
 
 
-@pytest.mark.parametrize("lines", [1, 2])
-def test_gradient_matches_central_differences(lines):
-    problem, p, rng = _problem(lines=lines)
+#: Medium sand's APL-UW law at 400 kHz (``Line.law``).
+SAND = scattering_law("sand", 400e3)
+
+
+@pytest.mark.parametrize(("lines", "law"), [(1, None), (2, None), (1, SAND)])
+def test_gradient_matches_central_differences(lines, law):
+    problem, p, rng = _problem(lines=lines, law=law)
+    assert all(view.geom.law is law for view in problem.views)
     view = problem.views[1]
     z = problem.fields(p, view)[0]
     shade = soft_shadow(z, view.geom.x, view.tau)[0]
@@ -724,6 +730,18 @@ def test_an_object_grows_to_its_shadow_height(monkeypatch, looks):
     print("with the shadow start", height(fit), "flat start", height(flat))
     assert height(fit) > 0.8 * BOX[2]
     assert height(flat) < height(fit) - 0.1
+
+
+def test_a_lines_law_is_modelled_at_the_finest_level_only(monkeypatch):
+    problem, _, _ = _problem(shadows=False, law=SAND)
+    line = layout.Line(
+        {v.side: v.image for v in problem.views}, 0.1, np.zeros((10, 2)), np.zeros(10), law=SAND
+    )
+    assert all(view.geom.law is SAND for view in solve.problem_at([line]).views)
+    coarse = solve.problem_at([line], level=2).views
+    assert all(view.geom.law is None for view in coarse)
+    monkeypatch.setattr(solve, "LAW_AT_FINEST_ONLY", False)
+    assert all(view.geom.law is SAND for view in solve.problem_at([line], level=2).views)
 
 
 def test_shadow_start_skips_pings_without_a_first_return():

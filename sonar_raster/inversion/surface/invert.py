@@ -12,6 +12,7 @@ from .layout import Line
 from .solve import EDGE_BINS, SurfaceFit, fit_lines
 
 if TYPE_CHECKING:
+    from ..law import ScatteringLaw
     from ..solver import BeamProfile, Inversion
 
 
@@ -75,6 +76,7 @@ def invert_line(
     *,
     ping_spacing: float,
     altitude: np.ndarray | None = None,
+    law: ScatteringLaw | None = None,
     **options,
 ) -> dict[str, Inversion]:
     """:func:`invert_lines` of one straight line, pings ``ping_spacing`` apart.
@@ -89,6 +91,8 @@ def invert_line(
         Along-track distance between pings, metres.
     altitude : ndarray, shape (pings,), optional
         Altitude per ping (default: the first bottom return).
+    law : ScatteringLaw, optional
+        The seabed's scattering law (default Lambert's; :func:`..law.scattering_law`).
     **options
         As for :func:`invert_lines`.
 
@@ -96,7 +100,8 @@ def invert_line(
     -------
     dict of str to Inversion
     """
-    return invert_lines([Line.straight(sides, range_bin, ping_spacing, altitude)], **options)[0]
+    line = Line.straight(sides, range_bin, ping_spacing, altitude, law)
+    return invert_lines([line], **options)[0]
 
 
 def _inversion(
@@ -127,6 +132,7 @@ def _inversion(
         **options,
         "looks": fit.looks[name],
         "altitude": "given" if altitude_given else "first return",
+        "law": "lambert" if line.law is None else line.law.name,
     }
     inv = Inversion(
         fit.x,
@@ -145,7 +151,7 @@ def _inversion(
         settings=settings,
     )
     reprojected = reproject(slant, range_bin, fit.x, inv.elevation)
-    even = even_illumination(reprojected, inv.beam, fit.x, inv.elevation)
+    even = even_illumination(reprojected, inv.beam, fit.x, inv.elevation, line.law)
     std = fit.elevation_std.get(name)
     if std is not None:
         std = np.where(known, std, np.nan)

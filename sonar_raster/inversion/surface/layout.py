@@ -17,6 +17,7 @@ import numpy as np
 from scipy import sparse
 
 from ...errors import SonarRasterError
+from ..law import ScatteringLaw
 from ..model import Geometry
 
 SIDES = ("port", "starboard")
@@ -151,6 +152,9 @@ class Line:
     height : ndarray, shape (pings,), optional
         Transducer height in a datum common to every line (e.g. minus the sensor depth),
         metres (default 0: every line at one depth).
+    law : ScatteringLaw, optional
+        The seabed's scattering law at this line's frequency (default: Lambert's;
+        :func:`..law.scattering_law`).
     """
 
     sides: Mapping[str, np.ndarray]
@@ -159,6 +163,7 @@ class Line:
     heading: np.ndarray
     altitude: np.ndarray | None = None
     height: np.ndarray | None = None
+    law: ScatteringLaw | None = None
 
     @classmethod
     def straight(
@@ -167,6 +172,7 @@ class Line:
         range_bin: float,
         ping_spacing: float,
         altitude: np.ndarray | None = None,
+        law: ScatteringLaw | None = None,
     ) -> Line:
         """A straight line along north from the origin, pings ``ping_spacing`` apart."""
         if not (math.isfinite(ping_spacing) and ping_spacing > 0):
@@ -174,7 +180,7 @@ class Line:
         pings = next(iter(sides.values())).shape[0] if sides else 0
         position = np.zeros((pings, 2))
         position[:, 1] = np.arange(pings) * ping_spacing
-        return cls(sides, range_bin, position, np.zeros(pings), altitude)
+        return cls(sides, range_bin, position, np.zeros(pings), altitude, law=law)
 
     @property
     def pings(self) -> int:

@@ -9,7 +9,7 @@ import math
 import os
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import partial
 from typing import TYPE_CHECKING
 
@@ -115,6 +115,12 @@ JOINT_STEP_BINS = 1.0
 JOINT_TRUST_RATIO = (0.25, 0.75)
 #: Depression-angle nodes of log Φ, per degree.
 BEAM_NODES_PER_DEGREE = 1.0
+#: A line's scattering law (``Line.law``) is modelled at the finest level fitted only; the
+#: coarser levels model Lambert's law and hand their seabed on. From the flat start a steep
+#: law (APL-UW sand falls 3.8 nats from 30° to 6° grazing) leads the coarse fit astray: on the
+#: bench's single-look sand waves rendered with sand's law, the law at every level 0.819, at
+#: the finest only 0.639, Lambert's throughout 0.728 (docs/notes/2026-12-02-law-in-fit.md).
+LAW_AT_FINEST_ONLY = True
 #: Objects whose cast shadow (:func:`..shadows.find_shadows` on the coarsest level's image)
 #: gives at least this height, in range bins of that level, start the fit at that height
 #: (None: every fit starts flat). From a flat start the shadow's darkness is cheaper to
@@ -505,7 +511,8 @@ def _level(
                 pooled = ndimage.convolve1d(pooled, TENT_BLUR, axis=1, mode="nearest")
             bins = pooled.shape[1]
             x = ground_axis(h, rb, bins, rb)
-            geom = Geometry(x, rb, dy, rb, bins, SUBSAMPLES, DEPOSIT)
+            law = None if LAW_AT_FINEST_ONLY and f > finest else line.law
+            geom = Geometry(x, rb, dy, rb, bins, SUBSAMPLES, DEPOSIT, law)
             y_pts, x_pts = cell_points(frame, position, heading, side, x)
             bz = tensor_basis(y_pts.ravel(), x_pts.ravel(), grid.extent, grid.z_spacing)
             br = bz
@@ -1148,7 +1155,7 @@ def model_first_return(
         beam = problem.beam(view, lphi[view.side], z)
         shade = soft_shadow(z, view.geom.x, view.tau)[0]
         g = view.geom
-        boxes = Geometry(g.x, g.dx, g.dy, g.range_bin, g.bins, g.subsamples, "segment")
+        boxes = replace(g, deposit="segment")
         sides[view.side] = forward(r * shade, beam.phi, z, boxes)
         depths.append(-z[:, g.x <= fold])
     if not any(d.size for d in depths):
