@@ -1,8 +1,9 @@
 """A report on a real side-scan XTF pass: waterfall, altitude, inversion, wreck height.
 
 Usage: ``python tools/report_real.py FILE.xtf -o DIR [--pings A:B] [--max-iter N]
-[--levels N] [--side starboard] [--method auto|profiles|surface]`` (``auto``, the default,
-chooses as ``sonar-raster invert`` does: the surface fit for a speckled file it can afford)
+[--levels N] [--side starboard] [--method auto|profiles|surface] [--law NAME]`` (``auto``,
+the default, chooses as ``sonar-raster invert`` does: the surface fit for a speckled file it
+can afford)
 
 Writes into DIR:
 
@@ -327,6 +328,8 @@ def _report(argv: list[str] | None) -> int:
                         help="the side with the object")  # fmt: skip
     ap.add_argument("--band-window", type=float, default=5.0,
                     help="metres of track: the seabed's own level (5)")  # fmt: skip
+    ap.add_argument("--law", help="surface fit: the seabed's scattering law (a sediment's "
+                    "name, taken at the file's frequency; default Lambert's)")  # fmt: skip
     args = ap.parse_args(argv)
     import matplotlib
 
@@ -351,6 +354,8 @@ def _report(argv: list[str] | None) -> int:
     options = {"max_iter": args.max_iter}
     if args.method == "profiles":
         options["levels"] = args.levels
+    if args.law:
+        options["law"] = args.law
     result = invert_xtf(args.xtf, pings=parse_pings(args.pings), method=args.method,
                         recording=recording, **options)  # fmt: skip
     seconds = time.perf_counter() - t0
@@ -454,6 +459,7 @@ def _report(argv: list[str] | None) -> int:
         },
         "inversion": {
             "method": args.method,
+            "law": args.law or "lambert",
             "max_iter": args.max_iter,
             "levels": args.levels,
             "seconds": seconds,

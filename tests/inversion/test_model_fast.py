@@ -33,9 +33,14 @@ def _reference(r, phi, z, geom: Geometry) -> np.ndarray:
             x = geom.x[j]
             q = max(0.0, x * zx - z[p, j]) / math.hypot(x, z[p, j])
             if geom.law is not None and q > 0:
-                # cos θ between the facet's normal (−Zx, 1) and the way to the sonar (−x, −Z)
-                normal = np.array([-zx, 1.0]) / math.hypot(zx, 1.0)
-                cos = float(normal @ np.array([-x, -z[p, j]])) / math.hypot(x, z[p, j])
+                # cos θ between the facet's normal (−Zx, −Zy, 1), Zy from the neighbouring
+                # pings, and the way to the sonar (−x, 0, −Z)
+                zy = 0.0
+                if pings > 1:
+                    lo, hi = max(p - 1, 0), min(p + 1, pings - 1)
+                    zy = (z[hi, j] - z[lo, j]) / ((hi - lo) * geom.dy)
+                normal = np.array([-zx, -zy, 1.0]) / math.sqrt(zx * zx + zy * zy + 1.0)
+                cos = float(normal @ np.array([-x, 0.0, -z[p, j]])) / math.hypot(x, z[p, j])
                 q *= math.exp(float(geom.law.log_factor_at(np.array([cos]))[0][0]))
             e = phi[p, j] * r[p, j] * q * h / n
             for s in range(n):

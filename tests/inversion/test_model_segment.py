@@ -4,6 +4,8 @@ against the tent deposit's."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -142,6 +144,19 @@ def test_evaluate_gradient_is_the_energys():
     jac = jacobian_z(w, r, phi, z, geom)
     np.testing.assert_allclose(ev.diag_z, 2.0 * (jac.multiply(jac)).sum(axis=0).A1.reshape(3, 12))
     assert np.all(ev.diag_r > 0) and np.all(ev.diag_phi > 0)
+
+
+@pytest.mark.parametrize("deposit", ["tent", "segment"])
+def test_evaluate_gradient_is_the_energys_with_a_law(deposit):
+    """With a law each cell's q depends on its neighbouring pings (the along-track slope):
+    evaluate's Z gradient carries it for both deposits."""
+    geom, r, phi, z, rng = _wavy(2, seed=5, law=SAND)
+    geom = replace(geom, deposit=deposit)
+    image, w = rng.uniform(0.0, 2.0, (3, geom.bins)), rng.uniform(0.5, 2.0, (3, geom.bins))
+    ev = evaluate(image, w, r, phi, z, geom)
+    numeric = _central(lambda v: energy(image, w, r, phi, v, geom), z).reshape(z.shape)
+    np.testing.assert_allclose(ev.grad_z, numeric, rtol=0, atol=1e-6 * np.abs(numeric).max())
+    assert np.all(ev.diag_z > 0)
 
 
 @pytest.mark.parametrize("subsamples", [1, 2])

@@ -105,13 +105,14 @@ def test_the_beam_at_the_flat_seabeds_angle_is_not_the_renderers(rendered):
 
 def test_a_seabeds_scattering_law_is_the_renderers(gl_renderer):
     """Medium sand's APL-UW law on the faces: the model with the law (:mod:`..law`, its
-    factor of each cell's cos θ, the along-track slope left out of cos θ) against the
-    renderer's per-fragment table lookup; Lambert's model on the same render is far off."""
+    factor of each cell's cos θ, the along-track slope in cos θ) against the renderer's
+    per-fragment table lookup (0.20 % median, 2.1 % 99th percentile; with Zy left out of
+    cos θ 0.28 % and 7.0 %, 2.6 % median where |Zy| > 0.3); Lambert's model is far off."""
     sand = scattering_law("sand", SONAR.frequency_hz)
     image = _render(gl_renderer, material_index("sand"))
     rel, slope = _compare(image, _model_image("segment", law=sand))
-    assert np.median(np.abs(rel)) < 0.005
-    assert np.quantile(np.abs(rel), 0.99) < 0.1
-    assert abs(slope - 1.0) < 0.01
+    assert np.median(np.abs(rel)) < 0.003
+    assert np.quantile(np.abs(rel), 0.99) < 0.03
+    assert abs(slope - 1.0) < 0.005
     lambert, _ = _compare(image, _model_image("segment"))
     assert np.median(np.abs(lambert)) > 0.2
