@@ -76,3 +76,22 @@ def test_bad_input():
         find_shadows(-np.ones((4, 40)), BIN, np.full(4, ALT))
     with pytest.raises(SonarRasterError):
         find_shadows(np.ones((4, 40)), BIN, np.zeros(4))
+
+
+@pytest.mark.parametrize("dark, found", [(0.02, True), (0.2, False)])
+def test_a_shadow_holds_the_noise_floor_not_a_dark_seabed(dark, found):
+    """A run after a highlight whose mean is a fifth of the seabed's (a back slope that a
+    steep scattering law darkens; single-look speckle under the median filter reads it below
+    the shadow level) is no shadow; one 17 dB down (the real file's wreck) is."""
+    rng = np.random.default_rng(4)
+    bins, pings = 400, 60
+    mean = np.ones((pings, bins))
+    mean[:, : int(ALT / BIN)] = 0.0  # water column
+    mean[:, 200:220] = 4.0  # highlight
+    mean[:, 220:260] = dark  # 2 m dark run
+    image = mean * rng.exponential(size=mean.shape)
+    # the median filter's test alone takes both
+    loose = find_shadows(image, BIN, np.full(pings, ALT), shadow_mean=None)
+    assert np.isfinite(loose.height).mean() > 0.5
+    share = np.isfinite(find_shadows(image, BIN, np.full(pings, ALT)).height).mean()
+    assert share > 0.75 if found else share < 0.05
