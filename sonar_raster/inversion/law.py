@@ -110,7 +110,7 @@ def scattering_law(
     if frequency is None or not (math.isfinite(frequency) and frequency > 0):
         raise SonarRasterError(
             f"--law {name}: the law depends on the sonar's frequency, which the input does not "
-            "record: give it with --frequency HZ"
+            "record: give it with --frequency KHZ (Python: scattering_law(name, hz))"
         )
     table = law_tables(float(frequency), sound_speed)[index]
     return ScatteringLaw.from_table(f"{key} at {frequency / 1e3:g} kHz", table)
