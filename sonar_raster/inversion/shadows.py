@@ -14,8 +14,9 @@ ping's seabed level (its median beyond the first return). A shadow is a run of b
 ``shadow_level`` of that level, at least ``min_shadow_m`` long and starting at least
 ``margin_m`` beyond the first return, that directly follows a highlight: a run above
 ``highlight_level`` (gaps up to ``gap_m`` bridged) ending within ``gap_m`` of the shadow's
-start, and whose mean intensity (unfiltered) is at most ``shadow_mean`` of the level: a cast
-shadow holds only the noise floor, at least 10 dB below the seabed, where a dark seabed still
+start, and whose mean intensity (unfiltered) is at most ``shadow_mean`` of the level (or
+twice the water column's mean before the first return, where the seabed is itself within
+10 dB of that floor): a cast shadow holds only the noise floor, where a dark seabed still
 returns. The longest such run per ping is kept. A shadow that runs to the end of the range
 gives only a lower bound (``R + Ls`` is at least the maximum range).
 
@@ -107,8 +108,8 @@ def find_shadows(
     shadow_level, highlight_level : float
         Shadow and highlight thresholds, as fractions of the ping's seabed level.
     shadow_mean : float or None
-        The most a shadow's mean intensity may be, as a fraction of that level (None: no
-        such test).
+        The most a shadow's mean intensity may be, as a fraction of that level, or twice the
+        water column's mean if that is more (None: no such test).
     min_shadow_m, margin_m, gap_m : float
         Shortest shadow, clearance after the first return, largest gap, metres.
 
@@ -131,6 +132,11 @@ def find_shadows(
     ratio = np.zeros_like(smooth)
     for i in range(pings):
         level = float(np.median(smooth[i, first[i] :]))
+        # the most a shadow may hold: 10 dB under the seabed, or the noise floor's twice where
+        # the seabed is itself near the floor (the water column's mean before the first return)
+        water = image[i, int(0.3 * first[i]) : int(0.9 * first[i])]
+        floor = 2.0 * float(np.mean(water)) if water.size else 0.0
+        most = None if shadow_mean is None else max(shadow_mean * level, floor)
         ratio[i] = smooth[i] / level if level > 0 else 0.0
         lo = min(bins, first[i] + int(round(margin_m / range_bin)))
         dark = ratio[i] < shadow_level
@@ -142,7 +148,7 @@ def find_shadows(
         for a, b in _runs(dark):
             if (b - a) * range_bin < min_shadow_m:
                 continue
-            if shadow_mean is not None and np.mean(image[i, a:b]) > shadow_mean * level:
+            if most is not None and np.mean(image[i, a:b]) > most:
                 continue
             k = _highlight_before(bright, a, int(first[i]), gap)
             if k >= 0 and (best is None or b - a > best[2] - best[1]):

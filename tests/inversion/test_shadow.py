@@ -95,3 +95,22 @@ def test_a_shadow_holds_the_noise_floor_not_a_dark_seabed(dark, found):
     assert np.isfinite(loose.height).mean() > 0.5
     share = np.isfinite(find_shadows(image, BIN, np.full(pings, ALT)).height).mean()
     assert share > 0.75 if found else share < 0.05
+
+
+def test_a_shadow_on_a_seabed_near_the_noise_floor_holds_that_floor():
+    """Where the seabed is only 6 dB above the noise floor (a far range, a weak echo), a cast
+    shadow is at the floor, not 10 dB under the seabed: it is still a shadow."""
+    rng = np.random.default_rng(5)
+    bins, pings = 400, 60
+    mean = np.ones((pings, bins))
+    mean[:, 200:220] = 4.0  # highlight
+    mean[:, 220:260] = 0.0  # cast shadow
+    mean += 0.25  # the noise floor everywhere, water column included
+    image = mean * rng.exponential(size=mean.shape)
+    share = np.isfinite(find_shadows(image, BIN, np.full(pings, ALT)).height).mean()
+    loose = find_shadows(image, BIN, np.full(pings, ALT), shadow_mean=None)
+    assert share > 0.5 and share == np.isfinite(loose.height).mean()
+    # measured against the seabed alone it would not be one
+    floorless = image.copy()
+    floorless[:, : int(ALT / BIN)] = 0.0
+    assert np.isfinite(find_shadows(floorless, BIN, np.full(pings, ALT)).height).mean() < 0.05
