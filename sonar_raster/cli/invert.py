@@ -775,18 +775,20 @@ def _line_options(args: argparse.Namespace, beam_profile: Any) -> dict[str, Any]
 
 
 def _law_given(args: argparse.Namespace) -> bool:
-    """Whether ``--law`` names a law other than Lambert's."""
-    return args.law is not None and args.law.strip().lower() != "lambert"
+    """Whether ``--law`` names a law other than Lambert's (an unknown name is refused first)."""
+    from ..inversion.law import LAMBERT
+
+    return args.law is not None and args.law.strip().lower() != LAMBERT
 
 
 def _check_law(args: argparse.Namespace) -> None:
     """Refuse an unknown ``--law`` and a ``--frequency`` without one, before any work."""
-    from ..inversion.law import scattering_law
+    from ..inversion.law import law_index
 
     if args.frequency is not None and not _law_given(args):
         raise SonarRasterError("--frequency is for --law (a sediment's law); leave it out")
-    if _law_given(args):
-        scattering_law(args.law, args.frequency * 1e3 if args.frequency else 1e5)
+    if args.law is not None:
+        law_index(args.law)
 
 
 def _law(args: argparse.Namespace) -> Any:

@@ -17,7 +17,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import PchipInterpolator
 
 from ..errors import SonarRasterError
 
@@ -47,6 +46,8 @@ class ScatteringLaw:
             raise SonarRasterError("a scattering law needs as many values as nodes, at least two")
         if not (np.all(np.isfinite(c)) and np.all(np.isfinite(v)) and np.all(np.diff(c) > 0)):
             raise SonarRasterError("a scattering law's nodes must be finite and increasing")
+        from scipy.interpolate import PchipInterpolator  # only where a law is used
+
         curve = PchipInterpolator(c, v, extrapolate=True)
         object.__setattr__(self, "_curve", curve)
         object.__setattr__(self, "_slope", curve.derivative())
@@ -78,6 +79,19 @@ class ScatteringLaw:
 LAMBERT = "lambert"
 
 
+def law_index(name: str) -> int | None:
+    """The renderers' law index of ``name`` (None for ``"lambert"``); one line if unknown."""
+    from ..scenes.sediments import material_index
+
+    key = name.strip().lower()
+    if key == LAMBERT:
+        return None
+    try:
+        return material_index(key)
+    except SonarRasterError as err:
+        raise SonarRasterError(f"--law: {err}") from None
+
+
 def scattering_law(
     name: str, frequency: float | None, sound_speed: float = 1500.0
 ) -> ScatteringLaw | None:
@@ -98,15 +112,12 @@ def scattering_law(
     SonarRasterError
         An unknown name, or a material without a frequency.
     """
-    from ..scenes.sediments import law_tables, material_index
+    from ..scenes.sediments import law_tables
 
-    key = name.strip().lower()
-    if key == LAMBERT:
+    index = law_index(name)
+    if index is None:
         return None
-    try:
-        index = material_index(key)
-    except SonarRasterError as err:
-        raise SonarRasterError(f"--law: {err}") from None
+    key = name.strip().lower()
     if frequency is None or not (math.isfinite(frequency) and frequency > 0):
         raise SonarRasterError(
             f"--law {name}: the law depends on the sonar's frequency, which the input does not "

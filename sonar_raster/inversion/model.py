@@ -670,9 +670,10 @@ def jacobian_z(
         jac = _segment_jacobian(weight, r, phi, z, geom)
     else:
         jac = _tent_jacobian(weight, r, phi, z, geom)
-    c = _cells(z, geom)
-    if c.dlnq_dzy is None:
+    if geom.law is None:  # Lambert's: each ping alone (no lookup of the cells again)
         return jac
+    c = _cells(z, geom)
+    assert c.dlnq_dzy is not None
     # the along-track slope: sqrt(w) D diag(Φ R q dx/rb ∂ln q/∂Zy) Dy, D the deposit
     deposit, q = deposit_matrix(z, geom)
     pings, cells = q.shape
@@ -888,8 +889,9 @@ def adjoint(
         out = _segment_adjoint(grad_model, r, phi, z, geom)
     else:
         out = _tent_adjoint(grad_model, r, phi, z, geom)
-    c = _cells(z, geom)
-    if c.dlnq_dzy is not None:  # the along-track slope, through ln q
+    if geom.law is not None:  # the along-track slope, through ln q
+        c = _cells(z, geom)
+        assert c.dlnq_dzy is not None
         moved = out[1] * np.broadcast_to(phi, c.q.shape) * c.dlnq_dzy  # ∂E/∂ln q · ∂ln q/∂Zy
         grad_z = out[2]
         grad_z += slope_adjoint(np.nan_to_num(moved), 0, geom.dy)

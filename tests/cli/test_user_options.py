@@ -246,16 +246,22 @@ def test_invert_chooses_the_surface_fit_for_a_speckled_image(tmp_path, capsys):
     assert chosen["none"][0].startswith("method: profiles") and not runs["none"][1]
 
 
-def test_the_profiles_priors_are_refused_by_the_surface_fit_and_choose_the_profiles(
-    tmp_path, capsys
-):
-    rng = np.random.default_rng(1)
+def _speckled_npy_invert(tmp_path, seed: int) -> list[str]:
+    """``invert`` arguments for a small single-look ``.npy`` side (24 pings × 128 bins)."""
+    rng = np.random.default_rng(seed)
     k = np.arange(128)
     image = np.where(k >= 30, 20.0 / np.maximum(k - 10.0, 1.0), 0.0) * rng.exponential(
         size=(24, 128)
     )
     np.save(tmp_path / "img.npy", image)
     base = ["invert", str(tmp_path / "img.npy"), "--range-bin", "0.05", "--no-mesh"]
+    return base
+
+
+def test_the_profiles_priors_are_refused_by_the_surface_fit_and_choose_the_profiles(
+    tmp_path, capsys
+):
+    base = _speckled_npy_invert(tmp_path, 1)
     for option in (["--relief-std", "0.05"], ["--slope-std", "0.3"], ["--flat-prior", "0.5"]):
         out = tmp_path / option[0].strip("-")
         assert main([*base, "--method", "surface", *option, "-o", str(out)]) == 2
@@ -268,13 +274,7 @@ def test_the_profiles_priors_are_refused_by_the_surface_fit_and_choose_the_profi
 
 
 def test_a_scattering_law_picks_the_surface_fit_and_its_mistakes_are_one_line(tmp_path, capsys):
-    rng = np.random.default_rng(2)
-    k = np.arange(128)
-    image = np.where(k >= 30, 20.0 / np.maximum(k - 10.0, 1.0), 0.0) * rng.exponential(
-        size=(24, 128)
-    )
-    np.save(tmp_path / "img.npy", image)
-    base = ["invert", str(tmp_path / "img.npy"), "--range-bin", "0.05", "--no-mesh"]
+    base = _speckled_npy_invert(tmp_path, 2)
     mistakes = (
         (["--law", "granite"], "--law: unknown material 'granite'"),
         (["--frequency", "400"], "--frequency is for --law"),

@@ -108,6 +108,23 @@ def test_even_illumination_divides_out_beam_and_mean_incidence():
     assert np.all(np.isnan(even_illumination(ground, beam, x, z)[:, :3]))
 
 
+def test_even_illumination_divides_out_a_seabeds_law_too():
+    from sonar_raster.inversion.law import scattering_law
+    from sonar_raster.scenes.sediments import law_factor, material_index
+
+    x = (np.arange(50) + 0.5) * 0.3
+    z = np.full((2, 50), -5.0)
+    r = np.full((2, 50), 0.4)
+    cos = mean_incidence_cos(x, z)
+    factor = law_factor(np.full(cos.shape, material_index("sand")), cos, 400e3)
+    ground = r * cos * factor  # a flat sand seabed under a uniform beam
+    sand = scattering_law("sand", 400e3)
+    even = even_illumination(ground, np.ones_like(z), x, z, sand)
+    # the law's smooth curve against the renderers' linear table: within 3 % on 1° steps
+    np.testing.assert_allclose(even, r, rtol=0.03)
+    assert np.ptp(factor) > 1.0  # Lambert's division alone would leave the law in
+
+
 def test_even_image_of_uniform_reflectivity_is_uniform(flat_inversion):
     inv = flat_inversion
     even = inv.even[:, _lit(inv)]
